@@ -1,0 +1,108 @@
+#pragma once
+/// \file eigen.hpp
+/// The forward modal solve: the lowest modes of \f$K u = \lambda M u\f$ by shift-invert
+/// Lanczos (Spectra) on a CHOLMOD supernodal factorization of \f$K - \sigma M\f$.
+///
+/// The symbolic analysis (fill-reducing ordering, supernode structure) depends only on the
+/// sparsity pattern, which is fixed for a given model, so it is done once in the constructor
+/// and reused for every parameter value: inside a calibration loop each solve costs one
+/// numeric factorization plus the Lanczos iterations.
+///
+/// The shift is negative (\f$\sigma = -0.3\lambda_1\f$ once \f$\lambda_1\f$ is known), so
+/// \f$K - \sigma M\f$ stays positive definite for free-free models with rigid-body modes; a
+/// failed Cholesky factorization then means K itself is indefinite (a negative modulus or
+/// stiffness), which is reported as such.
+///
+/// \code
+/// modalcal::ModalSolver solver(system.pattern(), options);
+/// modalcal::ModalResult r = solver.solve(K, M);
+/// if (r.status != modalcal::EigenStatus::Successful) std::cerr << r.message;
+/// \endcode
+
+#include <memory>
+#include <string>
+
+#include "modalcal/types.hpp"
+
+namespace modalcal {
+
+/// Outcome of a numerical computation (as in Spectra's CompInfo).
+enum class EigenStatus { Successful, NotConverging, NumericalIssue };
+std::string to_string(EigenStatus status);
+
+struct ModalOptions {
+  /// Number of elastic (non-rigid) modes wanted. Range: >= 1.
+  int num_modes = 10;
+  /// Largest number of rigid-body (zero-frequency) modes the model may have: 6 for a
+  /// free-free model, 0 for a supported one. More zero modes than this is reported as a
+  /// singular K (missing supports or an unconnected part). Range: 0..6.
+  int max_rigid_modes = 6;
+  /// Relative tolerance of the Lanczos Ritz values. Range: (0, 1e-2].
+  double tolerance = 1e-10;
+  /// Maximum number of restarts. Range: >= 1.
+  int max_iterations = 1000;
+  /// Krylov subspace size; 0 means 2 nev + 1 (measured best, see field notes). Range: 0 or > nev.
+  int subspace_size = 0;
+  /// Initial shift sigma (must be < 0), or 0 to choose one from trace(K)/trace(M). After each
+  /// successful solve the solver moves the shift to -0.3 times the lowest elastic eigenvalue.
+  double initial_shift = 0.0;
+  /// A mode is rigid if \f$\lambda < \text{rigid\_tolerance}\cdot \mathrm{tr}(K)/\mathrm{tr}(M)\f$.
+  /// Range: (0, 1e-3].
+  double rigid_tolerance = 1e-9;
+  /// Returns false and explains which field violates which condition.
+  bool IsValid(std::string* error) const;
+};
+
+struct ModalResult {
+  EigenStatus status = EigenStatus::NumericalIssue;
+  std::string message;               ///< why it failed, with the likely cause
+  Vector eigenvalues;                ///< elastic modes, ascending
+  Matrix modes;                      ///< columns, \f$u^T M u = 1\f$, largest component positive
+  Vector residuals;                  ///< \f$\|K u - \lambda M u\| / (\lambda \|M u\|)\f$ per mode
+  Vector rigid_eigenvalues;          ///< rigid-body modes found (near zero)
+  Matrix rigid_modes;
+  double shift = 0;                  ///< the shift used
+  int factorizations = 0;
+  int operator_solves = 0;           ///< applications of (K - sigma M)^{-1}
+  double seconds_factorize = 0, seconds_total = 0;
+};
+
+/// Frequency in Hz of an eigenvalue \f$\lambda = \omega^2\f$ (negative eigenvalues give
+/// negative frequencies, so that they stay visible in reports).
+double frequency_hz(double eigenvalue);
+/// Eigenvalue of a frequency in Hz.
+double eigenvalue_of_hz(double hz);
+
+class ModalSolver {
+ public:
+  /// Symbolic analysis of `pattern` (the pattern of K and M; both triangles stored).
+  /// \throws std::invalid_argument if the options are invalid or the pattern is not square.
+  ModalSolver(const SparseMatrix& pattern, const ModalOptions& options);
+  ~ModalSolver();
+  ModalSolver(const ModalSolver&) = delete;
+  ModalSolver& operator=(const ModalSolver&) = delete;
+
+  /// Lowest modes of (K, M); K and M must have the constructor's pattern.
+  ModalResult solve(const SparseMatrix& K, const SparseMatrix& M);
+  const ModalOptions& options() const { return options_; }
+  void set_num_modes(int n);
+  /// Seconds spent in the one-time symbolic analysis.
+  double seconds_analyze() const;
+  /// The shift the next solve starts from.
+  double shift() const { return shift_; }
+
+  /// Factorizes \f$A = K - \sigma M\f$ (sigma may be any value keeping A positive definite)
+  /// and solves A X = B: used by benchmarks to measure the floor and by adjoint solves.
+  /// Returns false with `message` set if A is not positive definite.
+  bool factorize_shifted(const SparseMatrix& K, const SparseMatrix& M, double sigma,
+                         std::string* message);
+  Matrix solve_factorized(const Matrix& rhs) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  ModalOptions options_;
+  double shift_ = 0;
+};
+
+}  // namespace modalcal

@@ -1,0 +1,18 @@
+#pragma once
+/// \file output.hpp
+/// Writing results without ever losing what a user gave: every output is written to a
+/// temporary file in the target directory and renamed over the target, so a crash leaves
+/// either the old file or the new one, never half of one; and no output may replace an input.
+
+#include <string>
+#include <vector>
+
+namespace modalcal {
+
+/// Writes `content` to `path` atomically (temporary file + rename in the same directory).
+/// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk), or
+///         std::runtime_error naming the path if it cannot be written.
+void write_file_atomically(const std::string& path, const std::string& content,
+                           const std::vector<std::string>& inputs = {});
+
+}  // namespace modalcal

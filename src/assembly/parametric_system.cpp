@@ -1,0 +1,469 @@
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+#include "modalcal/assembly.hpp"
+
+namespace modalcal {
+
+/// One affine term: coefficient(theta) * matrix, the matrix stored as values at positions of
+/// the common pattern.
+struct ParametricSystem::Term {
+  Coefficient coefficient;
+  bool mass = false;
+  std::vector<int> positions;
+  std::vector<double> values;
+  std::vector<int> parameters;  // parameters the coefficient depends on
+};
+
+namespace {
+
+// Structured meshes repeat the same element shape many times; computing its matrices once
+// makes setup of a 1e5-element model several times faster. Keyed on node coordinates relative
+// to the first node, quantized far below any meaningful geometric difference.
+class ElementMatrixCache {
+ public:
+  const SolidElementMatrices& get(SolidType type, const Eigen::Matrix3Xd& x) {
+    const double scale = (x.colwise() - x.col(0)).cwiseAbs().maxCoeff();
+    std::vector<long long> key;
+    key.reserve(x.size() + 1);
+    key.push_back(static_cast<long long>(type));
+    for (int c = 0; c < x.cols(); ++c)
+      for (int r = 0; r < 3; ++r)
+        key.push_back(std::llround((x(r, c) - x(r, 0)) / (scale * 1e-10)));
+    key.push_back(std::llround(std::log2(scale) * 1e6));
+    auto it = cache_.find(key);
+    if (it != cache_.end()) return it->second;
+    if (cache_.size() >= kMaxEntries) {
+      scratch_ = solid_element_matrices(type, x);
+      return scratch_;
+    }
+    return cache_.emplace(key, solid_element_matrices(type, x)).first->second;
+  }
+
+ private:
+  static constexpr size_t kMaxEntries = 2048;
+  std::map<std::vector<long long>, SolidElementMatrices> cache_;
+  SolidElementMatrices scratch_;
+};
+
+// Accumulates several term matrices over the common pattern at once, then hands each out in
+// compressed (positions, values) form.
+class TermAccumulator {
+ public:
+  TermAccumulator(int count, int nnz) : values_(count, std::vector<double>(nnz, 0.0)), touched_(nnz, 0) {}
+  void add(int term, int position, double v) {
+    values_[term][position] += v;
+    if (!touched_[position]) {
+      touched_[position] = 1;
+      touched_list_.push_back(position);
+    }
+  }
+  // Moves the accumulated values of `term` out; call for every term, then reset().
+  void extract(int term, std::vector<int>* positions, std::vector<double>* values) {
+    std::sort(touched_list_.begin(), touched_list_.end());
+    positions->clear();
+    values->clear();
+    for (int p : touched_list_) {
+      if (values_[term][p] != 0.0) {
+        positions->push_back(p);
+        values->push_back(values_[term][p]);
+      }
+      values_[term][p] = 0.0;
+    }
+  }
+  void reset() {
+    for (int p : touched_list_) touched_[p] = 0;
+    touched_list_.clear();
+  }
+
+ private:
+  std::vector<std::vector<double>> values_;
+  std::vector<char> touched_;
+  std::vector<int> touched_list_;
+};
+
+}  // namespace
+
+ParametricSystem::~ParametricSystem() = default;
+
+ParametricSystem::ParametricSystem(const Model& model,
+                                   std::vector<std::vector<PropertyId>> parameter_targets)
+    : model_(model), targets_(std::move(parameter_targets)) {
+  model_.validate();
+  property_parameter_.assign(model_.properties.size(), -1);
+  for (int j = 0; j < num_parameters(); ++j) {
+    if (targets_[j].empty())
+      throw std::invalid_argument("parameter " + std::to_string(j) + " targets no property");
+    for (PropertyId id : targets_[j]) {
+      if (id < 0 || id >= static_cast<int>(model_.properties.size()))
+        throw std::invalid_argument("parameter " + std::to_string(j) + " targets an unknown property");
+      if (property_parameter_[id] >= 0)
+        throw std::invalid_argument("property '" + model_.properties[id].name +
+                                    "' is the target of two parameters");
+      property_parameter_[id] = j;
+    }
+  }
+  dofs_ = std::make_unique<DofMap>(model_);
+  const DofMap& dofs = *dofs_;
+  const int n = model_.num_nodes();
+  if (dofs.num_free() == 0) throw std::invalid_argument("model has no free degrees of freedom");
+
+  // --- Sparsity pattern at node level: a coupled node acts through its reference node.
+  std::vector<int> representative(n);
+  for (int v = 0; v < n; ++v) representative[v] = v;
+  for (const RigidCoupling& r : model_.rigid_couplings)
+    for (int v : r.nodes) representative[v] = r.reference;
+  std::vector<int> first_free(n, -1), free_count(n, 0);
+  for (int f = 0; f < dofs.num_free(); ++f) {
+    const int v = dofs.free_owner(f).first;
+    if (first_free[v] < 0) first_free[v] = f;
+    ++free_count[v];
+  }
+  std::vector<std::vector<int>> adjacency(n);
+  auto connect = [&](const int* nodes, int count) {
+    for (int a = 0; a < count; ++a)
+      for (int b = 0; b < count; ++b) adjacency[representative[nodes[a]]].push_back(representative[nodes[b]]);
+  };
+  for (const ElementBlock& b : model_.blocks) {
+    const int npe = nodes_per_element(b.type);
+    for (int e = 0; e < b.num_elements(); ++e) connect(&b.connectivity[e * npe], npe);
+  }
+  for (const Joint& j : model_.joints) {
+    const int pair[2] = {j.node_a, j.node_b};
+    connect(pair, 2);
+  }
+  for (const GroundSpring& s : model_.ground_springs)
+    for (int v : s.nodes) connect(&v, 1);
+  for (const PointMass& m : model_.point_masses) connect(&m.node, 1);
+  long long nnz = 0;
+  for (int v = 0; v < n; ++v) {
+    auto& a = adjacency[v];
+    std::sort(a.begin(), a.end());
+    a.erase(std::unique(a.begin(), a.end()), a.end());
+    a.erase(std::remove_if(a.begin(), a.end(), [&](int u) { return free_count[u] == 0; }), a.end());
+    for (int u : a) nnz += static_cast<long long>(free_count[u]) * free_count[v];
+  }
+  if (nnz > std::numeric_limits<int>::max())
+    throw std::invalid_argument("model too large: K would have more than 2^31 nonzeros");
+  pattern_.resize(dofs.num_free(), dofs.num_free());
+  pattern_.resizeNonZeros(static_cast<int>(nnz));
+  int* outer = pattern_.outerIndexPtr();
+  int* inner = pattern_.innerIndexPtr();
+  int position = 0;
+  for (int f = 0; f < dofs.num_free(); ++f) {
+    outer[f] = position;
+    for (int u : adjacency[dofs.free_owner(f).first])
+      for (int k = 0; k < free_count[u]; ++k) inner[position++] = first_free[u] + k;
+  }
+  outer[dofs.num_free()] = position;
+  columns_.resize(nnz);
+  for (int f = 0; f < dofs.num_free(); ++f)
+    std::fill(columns_.begin() + outer[f], columns_.begin() + outer[f + 1], f);
+  std::fill(pattern_.valuePtr(), pattern_.valuePtr() + nnz, 0.0);
+  adjacency.clear();
+  adjacency.shrink_to_fit();
+
+  // --- Term matrices.
+  const DofMap::RowSparseMatrix& T = dofs.transformation_rows();
+  auto find_position = [&](int row, int col) {
+    const int* begin = inner + outer[col];
+    const int* end = inner + outer[col + 1];
+    return static_cast<int>(std::lower_bound(begin, end, row) - inner);
+  };
+  // Adds the local matrices (one per accumulated term) for local full DOFs `full`
+  // (-1 = absent), through u_full = T u.
+  std::vector<std::vector<std::pair<int, double>>> deps;
+  auto scatter = [&](TermAccumulator& acc, const std::vector<int>& full,
+                     const std::vector<const Matrix*>& local) {
+    const int m = static_cast<int>(full.size());
+    deps.resize(m);
+    for (int a = 0; a < m; ++a) {
+      deps[a].clear();
+      if (full[a] < 0) continue;
+      for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
+        deps[a].emplace_back(static_cast<int>(it.col()), it.value());
+    }
+    for (int b = 0; b < m; ++b)
+      for (const auto& [j, wj] : deps[b])
+        for (int a = 0; a < m; ++a)
+          for (const auto& [i, wi] : deps[a]) {
+            const int pos = find_position(i, j);
+            for (size_t t = 0; t < local.size(); ++t) {
+              const double v = (*local[t])(a, b);
+              if (v != 0.0) acc.add(static_cast<int>(t), pos, wi * wj * v);
+            }
+          }
+  };
+  auto factor = [](PropertyId id) { return Coefficient::Factor{Coefficient::Kind::Property, id, kNoProperty}; };
+  auto finish = [&](TermAccumulator& acc, int index, Coefficient coefficient, bool mass) {
+    Term term;
+    term.coefficient = std::move(coefficient);
+    term.mass = mass;
+    acc.extract(index, &term.positions, &term.values);
+    for (PropertyId id : term.coefficient.involved())
+      if (property_parameter_[id] >= 0) term.parameters.push_back(property_parameter_[id]);
+    std::sort(term.parameters.begin(), term.parameters.end());
+    term.parameters.erase(std::unique(term.parameters.begin(), term.parameters.end()), term.parameters.end());
+    if (!term.positions.empty()) terms_.push_back(std::move(term));
+  };
+
+  const int nnz_int = static_cast<int>(nnz);
+  ElementMatrixCache cache;
+  block_volume_.assign(model_.blocks.size(), 0.0);
+  for (size_t bi = 0; bi < model_.blocks.size(); ++bi) {
+    const ElementBlock& b = model_.blocks[bi];
+    const int npe = nodes_per_element(b.type);
+    TermAccumulator acc(3, nnz_int);
+    std::vector<int> full(3 * npe);
+    Eigen::Matrix3Xd x(3, npe);
+    for (int e = 0; e < b.num_elements(); ++e) {
+      for (int k = 0; k < npe; ++k) {
+        const int v = b.connectivity[e * npe + k];
+        x.col(k) = model_.coordinates[v];
+        for (int c = 0; c < 3; ++c) full[3 * k + c] = dofs.full_index(v, c);
+      }
+      const SolidElementMatrices* em;
+      try {
+        em = &cache.get(b.type, x);
+      } catch (const std::invalid_argument& error) {
+        throw std::invalid_argument("block '" + b.name + "', element " + std::to_string(e + 1) +
+                                    ": " + error.what());
+      }
+      for (int k = 0; k < npe; ++k) block_volume_[bi] += em->mass.row(3 * k).sum();
+      scatter(acc, full, {&em->volumetric, &em->deviatoric, &em->mass});
+    }
+    Coefficient bulk, shear, density;
+    if (b.form == ElasticForm::BulkShear) {
+      bulk.factors = {factor(b.modulus_a)};
+      shear.factors = {factor(b.modulus_b)};
+    } else {
+      bulk.factors = {{Coefficient::Kind::BulkFromYoung, b.modulus_a, b.modulus_b}};
+      shear.factors = {{Coefficient::Kind::ShearFromYoung, b.modulus_a, b.modulus_b}};
+    }
+    density.factors = {factor(b.density)};
+    if (b.stiffness_scale != kNoProperty) {
+      bulk.factors.push_back(factor(b.stiffness_scale));
+      shear.factors.push_back(factor(b.stiffness_scale));
+    }
+    if (b.mass_scale != kNoProperty) density.factors.push_back(factor(b.mass_scale));
+    finish(acc, 0, bulk, false);
+    finish(acc, 1, shear, false);
+    finish(acc, 2, density, true);
+  }
+
+  // Discrete entities: one term per (entity, component), so each can be a parameter.
+  TermAccumulator acc(1, nnz_int);
+  auto discrete_term = [&](const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass) {
+    scatter(acc, full, {&local});
+    finish(acc, 0, Coefficient{{factor(id)}}, mass);
+    acc.reset();
+  };
+  for (const Joint& j : model_.joints) {
+    std::vector<int> full(12);
+    for (int c = 0; c < 6; ++c) {
+      full[c] = dofs.full_index(j.node_a, c);
+      full[6 + c] = dofs.full_index(j.node_b, c);
+    }
+    for (int c = 0; c < 6; ++c)
+      if (j.stiffness[c] != kNoProperty) discrete_term(full, joint_component_matrix(j.frame, c), j.stiffness[c], false);
+  }
+  const Matrix one = Matrix::Ones(1, 1);
+  for (const GroundSpring& s : model_.ground_springs)
+    for (int c = 0; c < 6; ++c) {
+      if (s.stiffness[c] == kNoProperty) continue;
+      for (int v : s.nodes) scatter(acc, {dofs.full_index(v, c)}, {&one});
+      finish(acc, 0, Coefficient{{factor(s.stiffness[c])}}, false);
+      acc.reset();
+    }
+  for (const PointMass& m : model_.point_masses) {
+    const Matrix identity = Matrix::Identity(3, 3);
+    if (m.mass != kNoProperty)
+      discrete_term({dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)},
+                    identity, m.mass, true);
+    for (int c = 0; c < 3; ++c)
+      if (m.inertia[c] != kNoProperty) discrete_term({dofs.full_index(m.node, 3 + c)}, one, m.inertia[c], true);
+  }
+
+  // A free DOF no term touches makes K and M singular together; name it instead of letting
+  // the factorization fail obscurely.
+  std::vector<char> touched(dofs.num_free(), 0);
+  for (const Term& t : terms_)
+    for (int pos : t.positions) touched[inner[pos]] = 1;
+  for (int f = 0; f < dofs.num_free(); ++f)
+    if (!touched[f]) {
+      const auto [v, c] = dofs.free_owner(f);
+      throw std::invalid_argument(
+          "node " + std::to_string(model_.node_ids[v]) + " DOF " + component_name(c) +
+          " has neither stiffness nor mass: a reference node needs a rigid coupling, a joint or a "
+          "point mass acting on every DOF it has (or fix the DOF)");
+    }
+}
+
+Vector ParametricSystem::property_values(const Vector& p) const {
+  if (p.size() != num_parameters())
+    throw std::invalid_argument("expected " + std::to_string(num_parameters()) + " parameter values, got " +
+                                std::to_string(p.size()));
+  Vector theta(model_.properties.size());
+  for (size_t i = 0; i < model_.properties.size(); ++i) theta[i] = model_.properties[i].value;
+  for (int j = 0; j < num_parameters(); ++j)
+    for (PropertyId id : targets_[j]) theta[id] = p[j];
+  return theta;
+}
+
+namespace {
+// d c / d p_j: sum over the properties parameter j sets.
+double parameter_derivative(const Vector& gradient, const std::vector<PropertyId>& involved,
+                            const std::vector<int>& property_parameter, int j) {
+  double s = 0;
+  for (size_t a = 0; a < involved.size(); ++a)
+    if (property_parameter[involved[a]] == j) s += gradient[a];
+  return s;
+}
+double parameter_second_derivative(const Matrix& hessian, const std::vector<PropertyId>& involved,
+                                   const std::vector<int>& property_parameter, int j, int k) {
+  double s = 0;
+  for (size_t a = 0; a < involved.size(); ++a)
+    for (size_t b = 0; b < involved.size(); ++b)
+      if (property_parameter[involved[a]] == j && property_parameter[involved[b]] == k) s += hessian(a, b);
+  return s;
+}
+}  // namespace
+
+double ParametricSystem::term_scale(const Term& term, const Vector& theta, int j, int k) const {
+  if (j < 0) return term.coefficient.value(theta);
+  if (!std::binary_search(term.parameters.begin(), term.parameters.end(), j)) return 0.0;
+  if (k >= 0 && !std::binary_search(term.parameters.begin(), term.parameters.end(), k)) return 0.0;
+  Vector gradient;
+  Matrix hessian;
+  term.coefficient.derivatives(theta, &gradient, &hessian);
+  const std::vector<PropertyId> involved = term.coefficient.involved();
+  return k < 0 ? parameter_derivative(gradient, involved, property_parameter_, j)
+               : parameter_second_derivative(hessian, involved, property_parameter_, j, k);
+}
+
+void ParametricSystem::accumulate(const Vector& p, int j, int k, SparseMatrix* K, SparseMatrix* M) const {
+  for (SparseMatrix* A : {K, M}) {
+    if (A->nonZeros() != pattern_.nonZeros() || A->rows() != pattern_.rows()) *A = pattern_;
+    std::fill(A->valuePtr(), A->valuePtr() + A->nonZeros(), 0.0);
+  }
+  const Vector theta = property_values(p);
+  for (const Term& t : terms_) {
+    const double c = term_scale(t, theta, j, k);
+    if (c == 0.0) continue;
+    double* values = (t.mass ? M : K)->valuePtr();
+    for (size_t i = 0; i < t.positions.size(); ++i) values[t.positions[i]] += c * t.values[i];
+  }
+}
+
+void ParametricSystem::assemble(const Vector& p, SparseMatrix* K, SparseMatrix* M) const {
+  accumulate(p, -1, -1, K, M);
+}
+
+void ParametricSystem::assemble_derivative(const Vector& p, int j, SparseMatrix* dK, SparseMatrix* dM) const {
+  check_parameter(j);
+  accumulate(p, j, -1, dK, dM);
+}
+
+void ParametricSystem::assemble_second_derivative(const Vector& p, int j, int k, SparseMatrix* d2K,
+                                                  SparseMatrix* d2M) const {
+  check_parameter(j);
+  check_parameter(k);
+  accumulate(p, j, k, d2K, d2M);
+}
+
+void ParametricSystem::check_parameter(int j) const {
+  if (j < 0 || j >= num_parameters())
+    throw std::invalid_argument("parameter index " + std::to_string(j) + " out of range [0, " +
+                                std::to_string(num_parameters()) + ")");
+}
+
+void ParametricSystem::derivative_times(const Vector& p, int j, const Vector& u, Vector* dKu, Vector* dMu) const {
+  check_parameter(j);
+  const Vector theta = property_values(p);
+  dKu->setZero(num_dofs());
+  dMu->setZero(num_dofs());
+  const int* rows = pattern_.innerIndexPtr();
+  for (const Term& t : terms_) {
+    const double c = term_scale(t, theta, j, -1);
+    if (c == 0.0) continue;
+    Vector& y = t.mass ? *dMu : *dKu;
+    for (size_t i = 0; i < t.positions.size(); ++i)
+      y[rows[t.positions[i]]] += c * t.values[i] * u[columns_[t.positions[i]]];
+  }
+}
+
+void ParametricSystem::derivative_forms(const Vector& p, const Vector& v, const Vector& u, Vector* a,
+                                        Vector* b) const {
+  const Vector theta = property_values(p);
+  a->setZero(num_parameters());
+  b->setZero(num_parameters());
+  const int* rows = pattern_.innerIndexPtr();
+  Vector gradient;
+  Matrix hessian;
+  for (const Term& t : terms_) {
+    if (t.parameters.empty()) continue;
+    double form = 0;
+    for (size_t i = 0; i < t.positions.size(); ++i)
+      form += v[rows[t.positions[i]]] * t.values[i] * u[columns_[t.positions[i]]];
+    t.coefficient.derivatives(theta, &gradient, &hessian);
+    const std::vector<PropertyId> involved = t.coefficient.involved();
+    for (int j : t.parameters)
+      (t.mass ? *b : *a)[j] += form * parameter_derivative(gradient, involved, property_parameter_, j);
+  }
+}
+
+void ParametricSystem::second_derivative_forms(const Vector& p, const Vector& v, const Vector& u, Matrix* A,
+                                               Matrix* B) const {
+  const Vector theta = property_values(p);
+  A->setZero(num_parameters(), num_parameters());
+  B->setZero(num_parameters(), num_parameters());
+  const int* rows = pattern_.innerIndexPtr();
+  Vector gradient;
+  Matrix hessian;
+  for (const Term& t : terms_) {
+    if (t.parameters.empty()) continue;
+    t.coefficient.derivatives(theta, &gradient, &hessian);
+    if (hessian.isZero(0.0)) continue;
+    double form = 0;
+    for (size_t i = 0; i < t.positions.size(); ++i)
+      form += v[rows[t.positions[i]]] * t.values[i] * u[columns_[t.positions[i]]];
+    const std::vector<PropertyId> involved = t.coefficient.involved();
+    for (int j : t.parameters)
+      for (int k : t.parameters)
+        (t.mass ? *B : *A)(j, k) += form * parameter_second_derivative(hessian, involved, property_parameter_, j, k);
+  }
+}
+
+bool ParametricSystem::is_affine() const {
+  const Vector theta = property_values(Vector::Ones(num_parameters()));
+  Vector gradient;
+  Matrix hessian;
+  for (const Term& t : terms_) {
+    if (t.parameters.empty()) continue;
+    t.coefficient.derivatives(theta, &gradient, &hessian);
+    const std::vector<PropertyId> involved = t.coefficient.involved();
+    for (int j : t.parameters)
+      for (int k : t.parameters)
+        if (parameter_second_derivative(hessian, involved, property_parameter_, j, k) != 0.0) return false;
+  }
+  return true;
+}
+
+double ParametricSystem::total_mass(const Vector& p) const {
+  const Vector theta = property_values(p);
+  double mass = 0;
+  for (size_t b = 0; b < model_.blocks.size(); ++b) {
+    const ElementBlock& block = model_.blocks[b];
+    double scale = theta[block.density];
+    if (block.mass_scale != kNoProperty) scale *= theta[block.mass_scale];
+    mass += scale * block_volume_[b];
+  }
+  for (const PointMass& m : model_.point_masses)
+    if (m.mass != kNoProperty) mass += theta[m.mass];
+  return mass;
+}
+
+}  // namespace modalcal

@@ -1,0 +1,96 @@
+#include "cli/cli_common.hpp"
+
+#include <cmath>
+#include <fstream>
+
+#include "modalcal/output.hpp"
+
+namespace modalcal::cli {
+
+namespace {
+
+double parse_value(const std::string& text, const std::string& what) {
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || !std::isfinite(v))
+    throw InputError(what + ": '" + text + "' is not a finite number");
+  return v;
+}
+
+Vector from_report(const Problem& problem, const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("--params " + path + ": cannot open the file (expected initial, truth or a report JSON)");
+  nlohmann::json report;
+  try {
+    in >> report;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!report.contains("parameters") || !report["parameters"].is_array())
+    throw InputError(path + ": has no 'parameters' array; is it a calibration report?");
+  Vector p = problem.initial_values();
+  std::vector<bool> seen(p.size(), false);
+  for (const auto& entry : report["parameters"]) {
+    const std::string name = entry.value("name", "");
+    const int j = problem.find_parameter(name);
+    if (j < 0) throw InputError(path + ": parameter '" + name + "' is not in the problem " + problem.path);
+    const char* key = entry.contains("final") ? "final" : "value";
+    if (!entry.contains(key) || !entry[key].is_number())
+      throw InputError(path + ": parameter '" + name + "' has no numeric 'final' value");
+    p[j] = entry[key].get<double>();
+    seen[j] = true;
+  }
+  for (size_t j = 0; j < seen.size(); ++j)
+    if (!seen[j]) throw InputError(path + ": parameter '" + problem.parameters[j].name + "' is missing");
+  return p;
+}
+
+}  // namespace
+
+Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
+  Vector p;
+  if (choice.source == "initial") {
+    p = problem->initial_values();
+  } else if (choice.source == "truth") {
+    if (!problem->has_truth())
+      throw InputError("--params truth: " + problem->path + " does not give a truth value for every parameter");
+    p = problem->truth_values();
+  } else {
+    p = from_report(*problem, choice.source);
+  }
+  for (const std::string& a : choice.assignments) {
+    const size_t eq = a.find('=');
+    if (eq == std::string::npos) throw InputError("--set " + a + ": expected NAME=VALUE");
+    const std::string name = a.substr(0, eq);
+    const double value = parse_value(a.substr(eq + 1), "--set " + name);
+    const int j = problem->find_parameter(name);
+    if (j >= 0) {
+      p[j] = value;
+      continue;
+    }
+    const PropertyId id = problem->model.find_property(name);
+    if (id == kNoProperty) {
+      std::string known;
+      for (const Parameter& q : problem->parameters) known += " " + q.name;
+      throw InputError("--set " + name + ": neither a parameter (" + (known.empty() ? " none" : known) +
+                       ") nor a model property (<entity>.<property>, e.g. foam.G)");
+    }
+    for (const Parameter& q : problem->parameters)
+      for (PropertyId t : q.targets)
+        if (t == id) throw InputError("--set " + name + ": this property is set by parameter '" + q.name + "'; set that instead");
+    problem->model.properties[id].value = value;
+  }
+  return p;
+}
+
+void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
+  if (path.empty()) return;
+  write_file_atomically(path, json.dump(2) + "\n", {problem.path});
+}
+
+}  // namespace modalcal::cli

@@ -1,0 +1,31 @@
+#pragma once
+// Pieces every subcommand shares: loading a problem, choosing parameter values
+// (--params/--set), and writing JSON next to the printed report.
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+#include "modalcal/problem.hpp"
+
+namespace modalcal::cli {
+
+/// Input errors (exit code 2) as opposed to numerical failures (exit code 1).
+struct InputError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+struct ParameterChoice {
+  std::string source = "initial";        ///< initial | truth | path of a report JSON
+  std::vector<std::string> assignments;  ///< NAME=VALUE, NAME a parameter or a property
+};
+
+/// Parameter values chosen by `choice`; property assignments (names that are not parameters)
+/// are applied to problem->model.
+Vector choose_parameters(Problem* problem, const ParameterChoice& choice);
+
+/// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
+void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
+
+}  // namespace modalcal::cli

@@ -1,0 +1,7 @@
+#pragma once
+// Each subcommand registers itself on the application and reports its exit code.
+#include <CLI/CLI.hpp>
+
+namespace modalcal::cli {
+void register_modes_command(CLI::App& app, int* exit_code);
+}  // namespace modalcal::cli

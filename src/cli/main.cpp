@@ -1,0 +1,28 @@
+// fullspace_calib: calibrate finite-element modal models against measured modes.
+// Exit codes: 0 success, 1 numerical failure (solver did not succeed), 2 bad input.
+
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+
+#include "cli/cli_common.hpp"
+#include "cli/commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"fullspace_calib: calibrate finite-element modal models against measured modes"};
+  app.require_subcommand(1);
+  int exit_code = 0;
+  modalcal::cli::register_modes_command(app, &exit_code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return exit_code;
+}

@@ -1,0 +1,40 @@
+#include "modalcal/output.hpp"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <unistd.h>
+
+namespace modalcal {
+
+namespace fs = std::filesystem;
+
+void write_file_atomically(const std::string& path, const std::string& content,
+                           const std::vector<std::string>& inputs) {
+  std::error_code ec;
+  for (const std::string& input : inputs)
+    if (fs::exists(path, ec) && fs::equivalent(path, input, ec))
+      throw std::invalid_argument("refusing to write '" + path + "': it is an input (" + input +
+                                  "); choose another output name");
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir, ec))
+    throw std::runtime_error("cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
+  std::string temp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
+  const int fd = mkstemp(temp.data());
+  if (fd < 0)
+    throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
+  const bool written = ::write(fd, content.data(), content.size()) == static_cast<ssize_t>(content.size()) &&
+                       ::fsync(fd) == 0;
+  ::close(fd);
+  if (!written || std::rename(temp.c_str(), path.c_str()) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::remove(temp.c_str());
+    throw std::runtime_error("cannot write '" + path + "': " + reason);
+  }
+}
+
+}  // namespace modalcal

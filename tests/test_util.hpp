@@ -1,0 +1,33 @@
+#pragma once
+// Shared test helpers (in the spirit of Ceres' test_util): relative/absolute closeness with a
+// message that shows both numbers, and small model builders used by several test files.
+
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "modalcal/model.hpp"
+#include "modalcal/types.hpp"
+
+namespace modalcal::testing {
+
+/// |a - b| <= tol * max(|a|, |b|, floor); reports both values on failure.
+::testing::AssertionResult IsClose(double a, double b, double rel_tol, double floor = 0.0);
+#define EXPECT_CLOSE(a, b, tol) EXPECT_TRUE(::modalcal::testing::IsClose((a), (b), (tol)))
+
+/// Max-abs-entry relative difference of two matrices, scaled by max |b|.
+double RelativeDifference(const Matrix& a, const Matrix& b);
+
+/// Path of a file in the source tree.
+std::string SourcePath(const std::string& relative);
+
+/// Writes `text` to a fresh file in a per-test temporary directory and returns its path.
+std::string WriteTempFile(const std::string& name, const std::string& text);
+
+/// A spring-mass chain along x: `n` point masses `m` on nodes 1..n joined by joints of axial
+/// stiffness `k` (properties "joint<i>.kx"); node 0 is fixed in x when `grounded`, otherwise
+/// it is a further mass (free-free chain with one rigid-body mode). y and z are fixed
+/// everywhere so only axial motion remains.
+Model MakeChain(int n, double m, double k, bool grounded);
+
+}  // namespace modalcal::testing
