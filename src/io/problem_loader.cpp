@@ -111,18 +111,26 @@ struct Entity {
   EntityKind kind;
   int index;  ///< into the Model's vector of that kind
   int line;
+  std::string file;  ///< the file it is defined in (a problem may extend another file)
+};
+
+/// Where something was written: the file and line.
+struct Location {
+  std::string file;
+  int line = 0;
 };
 
 class Loader {
  public:
   Loader(const std::string& path, const LoadOptions& options, Problem& problem)
-      : path_(path), options_(options), problem_(problem), model_(problem.model) {}
+      : path_(path), current_file_(path), options_(options), problem_(problem), model_(problem.model) {}
 
-  void load(const YAML::Node& root);
+  /// Reads `root`; sections it lacks come from `base` (the file named by `extends`).
+  void load(const YAML::Node& root, const YAML::Node& base, const std::string& base_path);
 
  private:
   [[noreturn]] void fail_at(int line, const std::string& what, const std::string& message) const {
-    throw ProblemError(path_, line, what.empty() ? message : what + ": " + message);
+    throw ProblemError(current_file_, line, what.empty() ? message : what + ": " + message);
   }
   [[noreturn]] void fail(const Field& f, const std::string& message) const {
     fail_at(f.line, f.what, message);
@@ -180,9 +188,10 @@ class Loader {
   PropertyId target(const Field& f);
   PropertyId add_property(const std::string& name, const Field& source, double value);
   void add_entity(const Field& entry, EntityKind kind, size_t index);
-  int line_of_model_error(const std::string& message) const;
+  Location location_of_model_error(const std::string& message) const;
 
   std::string path_;
+  std::string current_file_;  ///< file of the section being read, for messages
   LoadOptions options_;
   Problem& problem_;
   Model& model_;
@@ -191,8 +200,8 @@ class Loader {
   double model_size_ = 0;  ///< bounding-box diagonal of the mesh
   std::map<std::string, int> reference_nodes_;
   std::map<std::string, Entity> entities_;
-  /// "block 'foam'" -> line: Model::validate names entities this way but knows no lines.
-  std::map<std::string, int> lines_;
+  /// "block 'foam'" -> location: Model::validate names entities this way but knows no lines.
+  std::map<std::string, Location> locations_;
 };
 
 std::vector<Field> Loader::entries(const Field& f, const std::string& what) const {
@@ -329,15 +338,33 @@ int Loader::choice(const Field& f, const std::vector<std::string>& options) cons
   fail(f, "expected one of " + join(options) + " for " + f.name() + ", got " + quote(value));
 }
 
-void Loader::load(const YAML::Node& root) {
-  if (!root.IsMap())
-    fail_at(1, "",
-            "expected a map of the problem's sections (mesh, blocks, ...), got " + describe(root));
-  const Fields top =
-      map_of({"", "", root, 1, 0}, "",
-             {"name", "description", "units", "mesh", "blocks", "node_sets", "reference_nodes",
-              "rigid_couplings", "joints", "springs", "point_masses", "fixed", "mode_families",
-              "parameters", "sensors", "measured", "options"});
+void Loader::load(const YAML::Node& root, const YAML::Node& base, const std::string& base_path) {
+  const std::vector<std::string> keys = {
+      "name", "description", "units", "extends", "mesh", "blocks", "node_sets", "reference_nodes",
+      "rigid_couplings", "joints", "springs", "point_masses", "fixed", "mode_families",
+      "parameters", "sensors", "measured", "options"};
+  auto sections_of = [&](const YAML::Node& node) {
+    if (!node.IsMap())
+      fail_at(1, "", "expected a map of the problem's sections (mesh, blocks, ...), got " + describe(node));
+    return map_of({"", "", node, 1, 0}, "", keys);
+  };
+  Fields top = sections_of(root);
+  // A section the file itself gives replaces the base file's whole section.
+  std::map<std::string, std::string> file_of;
+  for (const Field& f : top.items) file_of[f.key] = path_;
+  if (!base_path.empty()) {
+    current_file_ = base_path;
+    const Fields inherited = sections_of(base);
+    if (inherited.find("extends"))
+      fail(*inherited.find("extends"), "a file that is extended may not itself extend another");
+    for (const Field& f : inherited.items)
+      if (!top.find(f.key) && f.key != "name" && f.key != "description") {
+        top.items.push_back(f);
+        file_of[f.key] = base_path;
+      }
+    current_file_ = path_;
+  }
+  auto enter = [&](const Field& f) { current_file_ = file_of.at(f.key); };
   const Field* name = top.find("name");
   problem_.name = name ? text(*name) : std::filesystem::path(path_).stem().string();
   if (const Field* f = top.find("description")) problem_.description = text(*f);
@@ -358,15 +385,23 @@ void Loader::load(const YAML::Node& root) {
       {"sensors", &Loader::read_sensors},
       {"options", &Loader::read_options},
       {"measured", &Loader::read_measured}};
-  read_blocks(required(top, "blocks"));
-  read_mesh(required(top, "mesh"));
+  const Field& blocks = required(top, "blocks");
+  const Field& mesh = required(top, "mesh");
+  enter(blocks);
+  read_blocks(blocks);
+  enter(mesh);
+  read_mesh(mesh);
   for (const auto& [key, read] : sections)
-    if (const Field* f = top.find(key)) (this->*read)(*f);
+    if (const Field* f = top.find(key)) {
+      enter(*f);
+      (this->*read)(*f);
+    }
 
   try {
     model_.validate();
   } catch (const std::invalid_argument& e) {
-    throw ProblemError(path_, line_of_model_error(e.what()), e.what());
+    const Location at = location_of_model_error(e.what());
+    throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
   }
 }
 
@@ -440,9 +475,11 @@ void Loader::read_mesh(const Field& f) {
     model_.add_node(static_cast<long>(i) + 1, mesh.coordinates[i]);
   for (size_t k = 0; k < model_.blocks.size(); ++k) {
     ElementBlock& block = model_.blocks[k];
-    if (mesh.connectivity[k].empty())
+    if (mesh.connectivity[k].empty()) {
+      current_file_ = entities_.at(block.name).file;
       fail_at(entities_.at(block.name).line, "block " + quote(block.name),
               "no mesh box uses this block; add a box for it or remove it");
+    }
     block.type = type;
     block.connectivity = mesh.connectivity[k];
   }
@@ -522,7 +559,7 @@ void Loader::read_rigid_couplings(const Field& f) {
     const NodeSet& set = node_set(required(fs, "node_set"));
     r.nodes = set.nodes;
     r.name = set.name + " to " + text(reference);
-    lines_.emplace("rigid coupling " + quote(r.name), item.line);
+    locations_.emplace("rigid coupling " + quote(r.name), Location{current_file_, item.line});
     model_.rigid_couplings.push_back(r);
   }
 }
@@ -626,7 +663,7 @@ void Loader::read_fixed(const Field& f) {
           fail(dof, "node " + std::to_string(model_.node_ids[v]) + " of node set " +
                         quote(set.name) + " has no rotations to fix (only reference nodes do)");
     }
-    lines_.emplace("fixed " + quote(fixed.name), item.line);
+    locations_.emplace("fixed " + quote(fixed.name), Location{current_file_, item.line});
     model_.fixed.push_back(fixed);
   }
 }
@@ -634,7 +671,7 @@ void Loader::read_fixed(const Field& f) {
 void Loader::read_mode_families(const Field& f) {
   for (const Field& entry : named(f, "mode family")) {
     model_.mode_families[entry.key] = choice(entry, kDirections);
-    lines_[entry.what] = entry.line;
+    locations_[entry.what] = {current_file_, entry.line};
   }
 }
 
@@ -951,31 +988,31 @@ int Loader::node(const Field& f) const {
 }
 
 PropertyId Loader::add_property(const std::string& name, const Field& source, double value) {
-  lines_["property " + quote(name)] = source.line;
+  locations_["property " + quote(name)] = {current_file_, source.line};
   return model_.add_property(name, value);
 }
 
 void Loader::add_entity(const Field& entry, EntityKind kind, size_t index) {
   const auto [it, inserted] =
-      entities_.try_emplace(entry.key, Entity{kind, static_cast<int>(index), entry.line});
+      entities_.try_emplace(entry.key, Entity{kind, static_cast<int>(index), entry.line, current_file_});
   if (!inserted)
     fail(entry, "the name is already used by " + kind_name(it->second.kind) + " " +
                     quote(entry.key) + " (line " + std::to_string(it->second.line) +
                     "); names must be unique across blocks, joints, springs and point masses");
-  lines_[entry.what] = entry.line;
+  locations_[entry.what] = {current_file_, entry.line};
 }
 
-int Loader::line_of_model_error(const std::string& message) const {
+Location Loader::location_of_model_error(const std::string& message) const {
   size_t first = std::string::npos;
-  int line = 0;
-  for (const auto& [phrase, phrase_line] : lines_) {
+  Location location;
+  for (const auto& [phrase, phrase_location] : locations_) {
     const size_t at = message.find(phrase);
     if (at < first) {
       first = at;
-      line = phrase_line;
+      location = phrase_location;
     }
   }
-  return line;
+  return location;
 }
 
 YAML::Node parse(const std::string& path) {
@@ -1002,9 +1039,22 @@ YAML::Node parse(const std::string& path) {
 
 Problem load_problem(const std::string& path, const LoadOptions& options) {
   const YAML::Node root = parse(path);
+  YAML::Node base;
+  std::string base_path;
+  if (root.IsMap() && root["extends"]) {
+    const YAML::Node extends = root["extends"];
+    if (!extends.IsScalar())
+      throw ProblemError(path, extends.Mark().line + 1, "'extends' must name a problem file, got " + describe(extends));
+    base_path = (std::filesystem::path(path).parent_path() / extends.Scalar()).string();
+    if (!std::filesystem::exists(base_path))
+      throw ProblemError(path, extends.Mark().line + 1,
+                         "extends " + quote(extends.Scalar()) + ": no such file " + quote(base_path) +
+                             " (the path is relative to this file's folder)");
+    base = parse(base_path);
+  }
   Problem problem;
   problem.path = path;
-  Loader(path, options, problem).load(root);
+  Loader(path, options, problem).load(root, base, base_path);
   if (problem.synthetic) detail::synthesize_measured(&problem, *problem.synthetic);
   return problem;
 }

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The README's first command: installs what is missing, builds, and runs the main job on the
+# bundled LFU problem.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+bash scripts/build.sh
+mkdir -p out
+./build/bin/fullspace_calib modes problems/lfu/synthetic.yaml --params truth --json out/lfu-modes.json

@@ -1,0 +1,129 @@
+// The command-line program as users run it: output tables and JSON, exit codes, and that bad
+// input produces a message naming the file and cause without touching any input file.
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "test_util.hpp"
+
+namespace modalcal {
+namespace {
+
+using testing::WriteTempFile;
+
+struct CliRun {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+CliRun RunCli(const std::string& args) {
+  const std::string command = std::string(MODALCAL_CLI) + " " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string out;
+  char buffer[4096];
+  while (size_t n = fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
+  const int status = pclose(pipe);
+  return {WEXITSTATUS(status), out};
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+const char* kBar = R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.5]}]
+blocks:
+  bar: {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.5]}}
+fixed:
+  - {node_set: root, dofs: [x, y, z]}
+mode_families:
+  axial: x
+parameters:
+  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, truth: 1200}
+options:
+  num_modes: 6
+)";
+
+TEST(Cli, ModesPrintsTableAndWritesJson) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  const std::string json_path = WriteTempFile("out.json", "");
+  const CliRun run = RunCli("modes " + problem + " --json " + json_path);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("freq [Hz]"), std::string::npos);
+  EXPECT_NE(run.output.find("axial"), std::string::npos);
+  const nlohmann::json json = nlohmann::json::parse(ReadFile(json_path));
+  EXPECT_GT(json["dofs"].get<int>(), 0);
+  ASSERT_EQ(json["modes"].size(), 6u);
+  for (const auto& m : json["modes"]) {
+    EXPECT_TRUE(m.contains("index") && m.contains("frequency_hz") && m.contains("dominant_direction") &&
+                m.contains("label"));
+  }
+  EXPECT_EQ(json["modes"][0]["index"], 1);
+  bool has_axial = false;
+  for (const auto& m : json["modes"]) has_axial |= m["label"] == "axial";
+  EXPECT_TRUE(has_axial);
+}
+
+TEST(Cli, ParameterChoicesChangeFrequenciesAsPhysicsSays) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  auto first_frequency = [&](const std::string& extra) {
+    const std::string out = WriteTempFile("f.json", "");
+    const CliRun run = RunCli("modes " + problem + " --json " + out + " " + extra);
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    return nlohmann::json::parse(ReadFile(out))["modes"][0]["frequency_hz"].get<double>();
+  };
+  const double initial = first_frequency("");
+  // f ~ sqrt(E): truth E = 1200 vs initial 1000; --set E=4000 doubles f; density x4 halves it.
+  EXPECT_CLOSE(first_frequency("--params truth"), initial * std::sqrt(1.2), 1e-9);
+  EXPECT_CLOSE(first_frequency("--set E=4000"), initial * 2, 1e-9);
+  EXPECT_CLOSE(first_frequency("--set bar.density=4"), initial / 2, 1e-9);
+  // A calibration report's final values are accepted as a parameter source.
+  const std::string report = WriteTempFile("report.json", R"({"parameters": [{"name": "E", "final": 250}]})");
+  EXPECT_CLOSE(first_frequency("--params " + report), initial / 2, 1e-9);
+}
+
+TEST(Cli, BadInputIsNamedAndExitsWithTwo) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  CliRun run = RunCli("modes " + problem + " --set nosuch=3");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("nosuch"), std::string::npos) << run.output;
+  run = RunCli("modes " + problem + " --set E=abc");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("not a finite number"), std::string::npos) << run.output;
+  run = RunCli("modes " + problem + " --params truth --params /nonexistent.json");
+  EXPECT_EQ(run.exit_code, 2);
+  const std::string broken = WriteTempFile("broken.yaml", "mesh: {element: hex9}\nblocks: {}\n");
+  run = RunCli("modes " + broken);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("broken.yaml:"), std::string::npos) << run.output;
+}
+
+TEST(Cli, NegativeModulusIsANumericalFailureWithLikelyCause) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  const CliRun run = RunCli("modes " + problem + " --set E=-1000");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_NE(run.output.find("negative"), std::string::npos) << run.output;
+}
+
+TEST(Cli, NeverOverwritesTheProblemFile) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  const CliRun run = RunCli("modes " + problem + " --json " + problem);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("refusing"), std::string::npos) << run.output;
+  EXPECT_EQ(ReadFile(problem), kBar);
+}
+
+}  // namespace
+}  // namespace modalcal
