@@ -108,6 +108,10 @@ struct BarCase {
   double finest_error;      // bound on the relative eigenvalue error on the finest mesh
 };
 
+void PrintTo(const BarCase& c, std::ostream* os) {
+  *os << c.element << " nx = " << c.nx[0] << ", " << c.nx[1] << ", " << c.nx[2];
+}
+
 class AxialBar : public ::testing::TestWithParam<BarCase> {};
 
 // Consistent mass and conforming elements make the discrete problem a Rayleigh-Ritz
@@ -116,6 +120,9 @@ class AxialBar : public ::testing::TestWithParam<BarCase> {};
 // Method", ch. 6): order 2 for hex8 and tet4, 4 for tet10. For linear elements on the 1-D rod
 // it is exactly lambda_h = (6 / h^2) (1 - cos kh) / (2 + cos kh) E/rho = lambda (1 + (kh)^2/12
 // + ...). The observed order log2(err(h) / err(h/2)) must match.
+// hex8 reproduces the 1-D rod exactly (tested below); the tet split is not symmetric across
+// the section, so tet4 only contains the 1-D rod space (its eigenvalues are a little lower
+// than the rod's, still above the exact ones) and tet10 contains the quadratic rod space.
 TEST_P(AxialBar, ConvergesToRodFrequenciesAtTheTheoreticalOrder) {
   const BarCase c = GetParam();
   std::array<std::array<double, 3>, 3> error{};  // [mode][level], relative eigenvalue error
@@ -154,32 +161,108 @@ INSTANTIATE_TEST_SUITE_P(
     Elements, AxialBar,
     ::testing::Values(BarCase{"hex8", {8, 16, 32}, 3, 1.8, 2.2, 1e-2},
                       BarCase{"tet4", {8, 16, 32}, 3, 1.8, 2.2, 1e-2},
-                      BarCase{"tet10", {2, 4, 8}, 1, 3.5, 4.5, 1e-4}),
+                      BarCase{"tet10", {2, 4, 8}, 3, 3.5, 4.5, 2e-3}),
     [](const ::testing::TestParamInfo<BarCase>& info) { return std::string(info.param.element); });
+
+// Tensor-product hex8 with u_y = u_z = 0 and nu = 0 is exactly the 1-D rod of linear elements
+// with consistent mass, whose eigenvalues are known in closed form (the mode shapes
+// sin(j theta) at the nodes satisfy the interior difference equations for any theta, and the
+// free end selects cos(N theta) = 0):
+//   lambda_n = (E / rho) (6 / h^2) (1 - cos theta) / (2 + cos theta),  theta = (2n - 1) pi / (2N).
+// All four section nodes move together: the section-varying modes are far higher.
+TEST(AxialRod, Hex8ReproducesTheDiscreteRodEigenvaluesExactly) {
+  const int nx = 32;
+  const Solution s = Solve("bar.yaml", BarYaml("hex8", nx, 3));
+  ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
+  const double h = kBarL / nx;
+  for (int n = 1; n <= 3; ++n) {
+    const double theta = (2 * n - 1) * kPi / (2 * nx);
+    const double discrete =
+        kBarE / kBarRho * 6 / (h * h) * (1 - std::cos(theta)) / (2 + std::cos(theta));
+    EXPECT_CLOSE(s.result.eigenvalues[n - 1], discrete, 1e-10) << "mode " << n;
+  }
+}
 
 // Fixed-free rod: the effective mass of mode n along the rod is 8 / ((2n - 1)^2 pi^2) of the
 // total mass (Gamma_n = int rho A phi_n dx with phi_n = sqrt(2/(rho A L)) sin((2n-1) pi x/(2L))),
 // 0.8106 for the first mode; the fractions sum to 1 over all modes.
-TEST(EffectiveMass, FixedFreeRodFractionsMatchClosedForm) {
-  const Solution s = Solve("bar.yaml", BarYaml("hex8", 40, 5));
+double RodEffectiveMassFraction(int n) { return 8 / ((2 * n - 1) * (2 * n - 1) * kPi * kPi); }
+
+TEST(EffectiveMass, FixedFreeRodFirstModeCarriesEightOverPiSquared) {
+  const Solution s = Solve("bar.yaml", BarYaml("hex8", 40, 3));
   ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
   EXPECT_CLOSE(s.system->total_mass(s.p), kBarRho * kBarL * 0.25, 1e-12);
   const std::vector<ModeDescription> d = describe_modes(*s.system, s.p, s.M, s.result);
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_CLOSE(d[0].effective_mass_fraction[0], RodEffectiveMassFraction(1), 1e-2);
+  for (const ModeDescription& m : d) {
+    EXPECT_NEAR(m.effective_mass_fraction[1], 0.0, 1e-14);
+    EXPECT_NEAR(m.effective_mass_fraction[2], 0.0, 1e-14);
+    EXPECT_EQ(m.dominant_direction, 0);
+    EXPECT_NEAR(m.energy_fraction[0], 1.0, 1e-12);
+  }
+}
+
+// Over *all* modes of a model the fractions sum to r^T M r / m_total (the modes are complete);
+// this tends to 1 as the mesh is refined (only the mass next to the support is lost, O(h / L)).
+// nx = 20 with one element across the section: 80 free DOFs, all computed (dense path).
+TEST(EffectiveMass, FixedFreeRodFractionsOverAllModesSumTowardOne) {
+  const int nx = 20;
+  const Solution s = Solve("bar.yaml", BarYaml("hex8", nx, 80));
+  ASSERT_EQ(s.system->num_dofs(), 80);
+  ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
+  const std::vector<ModeDescription> d = describe_modes(*s.system, s.p, s.M, s.result);
+  double sum = 0;
+  for (const ModeDescription& m : d) sum += m.effective_mass_fraction[0];
+  const double h = kBarL / nx;
+  std::printf("[ verify   ] rod (nx = %d): effective mass fractions over all %zu modes sum to %.6f\n",
+              nx, d.size(), sum);
+  EXPECT_LE(sum, 1.0 + 1e-12);
+  EXPECT_GE(sum, 1.0 - h / kBarL);
+}
+
+// The next modes too: 8 / ((2n - 1)^2 pi^2) = 0.0901, 0.0324, 0.0165, 0.0100 for n = 2..5.
+// The discrete model reproduces them closely: with the standard base-excitation participation
+// factor Gamma = phi^T M_full r_full (r = 1 on *every* x DOF, the supported ones included,
+// since the base moves them), the consistent-mass rod at nx = 40 is within 2e-4 of the closed
+// form for n <= 5 (checked below on a companion model whose root x DOFs are kept). The test
+// asks 1e-3 of describe_modes.
+//
+// KNOWN FAILURE (library): describe_modes uses Gamma = r_f^T M_ff phi over the free DOFs only,
+// which drops the inertial coupling M_fs between the support and the free DOFs of the consistent
+// mass matrix. For the rod this loses rho A h/6 sin(kh) of Gamma, a relative error of about
+// -(kh)^2/3 in the fraction: -0.05 %, -0.46 %, -1.3 %, -2.5 %, -4.1 % for n = 1..5 at nx = 40
+// (and the all-mode sum is r_f^T M_ff r_f / m = 1 - 2h/(3L)). The formula is exact only for a
+// lumped mass matrix (M_fs = 0); this library's mass matrices are consistent.
+TEST(EffectiveMass, FixedFreeRodHigherModeFractionsMatchClosedForm) {
+  const Solution s = Solve("bar.yaml", BarYaml("hex8", 40, 5));
+  ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
+  const std::vector<ModeDescription> d = describe_modes(*s.system, s.p, s.M, s.result);
   ASSERT_EQ(d.size(), 5u);
-  double sum = 0, expected_sum = 0;
+  // Companion model: the same mesh with the root's x DOFs free, to get the full mass matrix on
+  // the x DOFs (node indices are the same in both models).
+  std::string yaml = BarYaml("hex8", 40, 5);
+  const std::string root_fix = "  - {node_set: root, dofs: [x]}\n";
+  yaml.erase(yaml.find(root_fix), root_fix.size());
+  const Problem full_problem = load_problem(WriteTempFile("bar_full.yaml", yaml));
+  ParametricSystem full(full_problem.model, {});
+  SparseMatrix K_full, M_full;
+  full.assemble(Vector(), &K_full, &M_full);
+  const int root_nodes = static_cast<int>(full_problem.model.find_node_set("root")->nodes.size());
+  ASSERT_EQ(full.num_dofs(), s.system->num_dofs() + root_nodes);  // the root nodes' x DOFs
+  Vector r_full = Vector::Ones(full.num_dofs());            // every DOF is an x DOF
+  const double m_total = s.system->total_mass(s.p);
   for (int n = 1; n <= 5; ++n) {
     SCOPED_TRACE("mode " + std::to_string(n));
-    const double expected = 8 / ((2 * n - 1) * (2 * n - 1) * kPi * kPi);
-    EXPECT_CLOSE(d[n - 1].effective_mass_fraction[0], expected, 1e-2);
-    EXPECT_NEAR(d[n - 1].effective_mass_fraction[1], 0.0, 1e-14);
-    EXPECT_NEAR(d[n - 1].effective_mass_fraction[2], 0.0, 1e-14);
-    EXPECT_EQ(d[n - 1].dominant_direction, 0);
-    EXPECT_NEAR(d[n - 1].energy_fraction[0], 1.0, 1e-12);
-    sum += d[n - 1].effective_mass_fraction[0];
-    expected_sum += expected;
+    Vector phi = Vector::Zero(full.num_dofs());
+    for (int f = 0; f < s.system->num_dofs(); ++f) {
+      const auto [node, comp] = s.system->dof_map().free_owner(f);
+      phi[full.dof_map().free_index(node, comp)] = s.result.modes(f, n - 1);
+    }
+    const double gamma = r_full.dot(M_full * phi);
+    EXPECT_CLOSE(gamma * gamma / m_total, RodEffectiveMassFraction(n), 2e-4);  // the model is right
+    EXPECT_CLOSE(d[n - 1].effective_mass_fraction[0], RodEffectiveMassFraction(n), 1e-3);
   }
-  EXPECT_CLOSE(sum, expected_sum, 1e-2);  // 0.9675 for 5 modes
-  EXPECT_LT(sum, 1.0);
 }
 
 // ------------------------------------------------------------------------------ cantilever
@@ -223,8 +306,8 @@ double EulerBernoulliHz(double h) {
 }
 
 // tet10 has no shear locking. At L/h = 10, shear deformation and rotary inertia (Timoshenko)
-// lower the first frequency by about 1 %, the discretization raises it slightly: 2 % bounds
-// both.
+// lower the first frequency below Euler-Bernoulli by under 1 % (0.65 % measured), the
+// discretization raises it slightly: 2 % bounds both.
 TEST(Cantilever, Tet10FirstBendingPairMatchesEulerBernoulli) {
   const Solution s = Solve("beam.yaml", BeamYaml("tet10", 0.5));
   ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
@@ -237,6 +320,11 @@ TEST(Cantilever, Tet10FirstBendingPairMatchesEulerBernoulli) {
               d[1].frequency_hz / fz);
   EXPECT_CLOSE(d[0].frequency_hz, fy, 0.02);
   EXPECT_CLOSE(d[1].frequency_hz, fz, 0.02);
+  // Shear deformation and rotary inertia can only lower the frequency below Euler-Bernoulli;
+  // the tet10 discretization error at this size (0.011 %: 0.160511 Hz here, 0.160493 Hz at
+  // element size 0.25) is far smaller than that drop (0.65 %).
+  EXPECT_LT(d[0].frequency_hz, fy);
+  EXPECT_LT(d[1].frequency_hz, fz);
   // The pair: bending along y first (thinner), then along z, 1.1 x apart as h_z / h_y.
   EXPECT_CLOSE(d[1].frequency_hz / d[0].frequency_hz, kBeamHz / kBeamHy, 0.01);
   EXPECT_EQ(d[0].dominant_direction, 1);
@@ -250,11 +338,13 @@ TEST(Cantilever, Tet10FirstBendingPairMatchesEulerBernoulli) {
   EXPECT_NEAR(d[1].effective_mass_fraction[2], 0.613, 0.02);
 }
 
-// Fully integrated (2x2x2 Gauss) hex8 elements lock in bending: a trilinear element cannot
-// bend without a parasitic shear strain, which adds spurious shear energy of relative size
-// ~ (L_e / h)^2 ... (h / L_e)^2 depending on aspect; the element is far too stiff on coarse
-// meshes. The frequency therefore lies above the converged (tet10) value and decreases
-// monotonically with refinement towards it.
+// Fully integrated (2x2x2 Gauss) hex8 elements shear-lock in bending: the trilinear element's
+// edges stay straight, so it cannot bend without a parasitic shear strain
+// gamma ~ curvature * (element length). The spurious shear energy, relative to the bending
+// energy ~ (G / E) (L_e / h)^2 with L_e the element length and h the beam depth, makes coarse
+// meshes far too stiff and vanishes only as L_e -> 0. The frequency therefore lies above the
+// converged value (tet10, which does not lock) and decreases monotonically towards it with
+// refinement.
 TEST(Cantilever, Hex8LocksAndConvergesFromAbove) {
   const Solution ref = Solve("beam_tet10.yaml", BeamYaml("tet10", 0.5));
   ASSERT_EQ(ref.result.status, EigenStatus::Successful) << ref.result.message;
@@ -279,7 +369,7 @@ TEST(Cantilever, Hex8LocksAndConvergesFromAbove) {
 
 // --------------------------------------------------------------------- sparse against dense
 
-// An L-shaped hex8 part clamped at x = 0, with ~700 free DOFs, so ModalSolver takes its
+// An L-shaped hex8 part clamped at x = 0, with > 300 free DOFs, so ModalSolver takes its
 // Lanczos/CHOLMOD path (dense only up to 300 DOFs). No symmetry, so no repeated eigenvalues.
 TEST(SparseVsDense, LShapedSolidMatchesDenseGeneralizedSolve) {
   const Solution s = Solve("lshape.yaml", R"(
@@ -335,7 +425,7 @@ Matrix RigidMotions(const ParametricSystem& system, const Vec3& c) {
   return r;
 }
 
-// A free brick with unequal sides (810 DOFs: Lanczos path): exactly 6 rigid-body modes,
+// A free brick with unequal sides (648 DOFs: Lanczos path): exactly 6 rigid-body modes,
 // reported separately; they carry no strain energy and span the six rigid motions; the first
 // elastic mode agrees with a dense solve.
 TEST(FreeFree, SixRigidModesSpanRigidMotionsAndElasticModesMatchDense) {
@@ -419,7 +509,10 @@ options: {num_modes: 3}
 )");
   ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
   const double kx = 1e3, m2 = 1.0;
-  EXPECT_CLOSE(s.result.eigenvalues[0], kx / m2, 1e-4);
+  std::printf("[ verify   ] stiff cubes on joint: omega^2 = %.10g (kx / m2 = %g), next %.4g\n",
+              s.result.eigenvalues[0], kx / m2, s.result.eigenvalues[1]);
+  EXPECT_CLOSE(s.result.eigenvalues[0], kx / m2, 1e-5);
+  EXPECT_LT(s.result.eigenvalues[0], kx / m2);  // the cubes' compliance acts in series
   EXPECT_GT(s.result.eigenvalues[1], 1e5);
   const std::vector<ModeDescription> d = describe_modes(*s.system, s.p, s.M, s.result);
   EXPECT_EQ(d[0].dominant_direction, 0);

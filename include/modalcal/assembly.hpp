@@ -110,8 +110,12 @@ class ParametricSystem {
                                Matrix* B) const;
   /// True if K and M are affine in every parameter (all second derivatives vanish).
   bool is_affine() const;
-  /// Total mass per global translation direction (rigid-body mass), for effective-mass fractions.
+  /// Total mass (rigid-body mass), for effective-mass fractions.
   double total_mass(const Vector& p) const;
+  /// \f$T^T M_{full}\, r_d\f$ for the unit rigid translations \f$r_d\f$ (d = x, y, z) of every DOF,
+  /// supported ones included (num_dofs x 3). Its product with a mode is the base-excitation
+  /// participation factor \f$\Gamma_d = u^T (M_{ff} r_f + M_{fs} r_s)\f$, exact with consistent mass.
+  Matrix rigid_body_inertia(const Vector& p) const;
 
  private:
   struct Term;

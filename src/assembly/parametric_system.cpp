@@ -16,6 +16,10 @@ struct ParametricSystem::Term {
   std::vector<int> positions;
   std::vector<double> values;
   std::vector<int> parameters;  // parameters the coefficient depends on
+  // For mass terms: T^T M_t,full r_d for the unit rigid translations r_d of *all* DOFs, fixed
+  // ones included (num_free x 3). The mass coupling to supported DOFs belongs in the
+  // participation factors of a supported model, and the reduced M alone does not hold it.
+  Matrix inertia;
 };
 
 namespace {
@@ -198,8 +202,9 @@ ParametricSystem::ParametricSystem(const Model& model,
           }
   };
   auto factor = [](PropertyId id) { return Coefficient::Factor{Coefficient::Kind::Property, id, kNoProperty}; };
-  auto finish = [&](TermAccumulator& acc, int index, Coefficient coefficient, bool mass) {
+  auto finish = [&](TermAccumulator& acc, int index, Coefficient coefficient, bool mass, Matrix inertia = Matrix()) {
     Term term;
+    term.inertia = std::move(inertia);
     term.coefficient = std::move(coefficient);
     term.mass = mass;
     acc.extract(index, &term.positions, &term.values);
@@ -213,10 +218,22 @@ ParametricSystem::ParametricSystem(const Model& model,
   const int nnz_int = static_cast<int>(nnz);
   ElementMatrixCache cache;
   block_volume_.assign(model_.blocks.size(), 0.0);
+  // Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
+  // every local DOF, fixed or not.
+  auto add_inertia = [&](Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) {
+    for (size_t a = 0; a < full.size(); ++a) {
+      if (full[a] < 0) continue;
+      for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
+        inertia.row(it.col()) += it.value() * local_inertia.row(a);
+    }
+  };
   for (size_t bi = 0; bi < model_.blocks.size(); ++bi) {
     const ElementBlock& b = model_.blocks[bi];
     const int npe = nodes_per_element(b.type);
     TermAccumulator acc(3, nnz_int);
+    Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
+    Matrix translations = Matrix::Zero(3 * npe, 3);
+    for (int k = 0; k < npe; ++k) translations.block(3 * k, 0, 3, 3).setIdentity();
     std::vector<int> full(3 * npe);
     Eigen::Matrix3Xd x(3, npe);
     for (int e = 0; e < b.num_elements(); ++e) {
@@ -234,6 +251,7 @@ ParametricSystem::ParametricSystem(const Model& model,
       }
       for (int k = 0; k < npe; ++k) block_volume_[bi] += em->mass.row(3 * k).sum();
       scatter(acc, full, {&em->volumetric, &em->deviatoric, &em->mass});
+      add_inertia(inertia, full, em->mass * translations);
     }
     Coefficient bulk, shear, density;
     if (b.form == ElasticForm::BulkShear) {
@@ -251,14 +269,15 @@ ParametricSystem::ParametricSystem(const Model& model,
     if (b.mass_scale != kNoProperty) density.factors.push_back(factor(b.mass_scale));
     finish(acc, 0, bulk, false);
     finish(acc, 1, shear, false);
-    finish(acc, 2, density, true);
+    finish(acc, 2, density, true, std::move(inertia));
   }
 
   // Discrete entities: one term per (entity, component), so each can be a parameter.
   TermAccumulator acc(1, nnz_int);
-  auto discrete_term = [&](const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass) {
+  auto discrete_term = [&](const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass,
+                           Matrix inertia = Matrix()) {
     scatter(acc, full, {&local});
-    finish(acc, 0, Coefficient{{factor(id)}}, mass);
+    finish(acc, 0, Coefficient{{factor(id)}}, mass, std::move(inertia));
     acc.reset();
   };
   for (const Joint& j : model_.joints) {
@@ -280,9 +299,12 @@ ParametricSystem::ParametricSystem(const Model& model,
     }
   for (const PointMass& m : model_.point_masses) {
     const Matrix identity = Matrix::Identity(3, 3);
-    if (m.mass != kNoProperty)
-      discrete_term({dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)},
-                    identity, m.mass, true);
+    if (m.mass != kNoProperty) {
+      const std::vector<int> full = {dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)};
+      Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
+      add_inertia(inertia, full, identity);
+      discrete_term(full, identity, m.mass, true, std::move(inertia));
+    }
     for (int c = 0; c < 3; ++c)
       if (m.inertia[c] != kNoProperty) discrete_term({dofs.full_index(m.node, 3 + c)}, one, m.inertia[c], true);
   }
@@ -450,6 +472,14 @@ bool ParametricSystem::is_affine() const {
         if (parameter_second_derivative(hessian, involved, property_parameter_, j, k) != 0.0) return false;
   }
   return true;
+}
+
+Matrix ParametricSystem::rigid_body_inertia(const Vector& p) const {
+  const Vector theta = property_values(p);
+  Matrix inertia = Matrix::Zero(num_dofs(), 3);
+  for (const Term& t : terms_)
+    if (t.inertia.size()) inertia += t.coefficient.value(theta) * t.inertia;
+  return inertia;
 }
 
 double ParametricSystem::total_mass(const Vector& p) const {

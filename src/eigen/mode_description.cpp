@@ -26,22 +26,16 @@ std::vector<ModeDescription> describe_modes(const ParametricSystem& system, cons
                                             const SparseMatrix& M, const ModalResult& result) {
   const DofMap& dofs = system.dof_map();
   const int n = dofs.num_free();
-  std::array<Vector, 3> rigid;
-  for (int d = 0; d < 3; ++d) rigid[d] = Vector::Zero(n);
-  for (int f = 0; f < n; ++f) {
-    const int c = dofs.free_owner(f).second;
-    if (c < 3) rigid[c][f] = 1.0;
-  }
+  const Matrix inertia = system.rigid_body_inertia(p);
   const double total_mass = system.total_mass(p);
   const std::vector<int> part = part_of_free_dofs(system);
   const int num_parts = static_cast<int>(system.model().blocks.size());
-  // Mass of each part along each direction: r_{b,d}^T M r_d restricted to the part's DOFs.
+  // Mass of each part along each direction: the rigid-translation inertia on the part's DOFs.
   std::array<Vector, 3> part_mass;
   for (int c = 0; c < 3; ++c) {
     part_mass[c] = Vector::Zero(num_parts);
-    const Vector Mr = M * rigid[c];
     for (int f = 0; f < n; ++f)
-      if (part[f] >= 0 && dofs.free_owner(f).second == c) part_mass[c][part[f]] += Mr[f];
+      if (part[f] >= 0 && dofs.free_owner(f).second == c) part_mass[c][part[f]] += inertia(f, c);
   }
   std::vector<ModeDescription> out;
   for (int k = 0; k < result.eigenvalues.size(); ++k) {
@@ -64,7 +58,7 @@ std::vector<ModeDescription> describe_modes(const ParametricSystem& system, cons
       for (int b = 0; b < num_parts; ++b)
         if (part_mass[c][b] > 0) d.part_translation_fraction[c] += momentum[c][b] * momentum[c][b] / part_mass[c][b] / energy;
       d.energy_fraction[c] = share[c];
-      const double gamma = rigid[c].dot(Mu);
+      const double gamma = inertia.col(c).dot(u);
       d.effective_mass_fraction[c] = total_mass > 0 ? gamma * gamma / total_mass : 0.0;
       if (share[c] > share[d.dominant_direction]) d.dominant_direction = c;
     }
