@@ -13,6 +13,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   modalcal::cli::register_modes_command(app, &exit_code);
+  modalcal::cli::register_calibrate_command(app, &exit_code);
+  modalcal::cli::register_check_command(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -34,7 +34,9 @@ void synthesize_measured(Problem* problem, const SyntheticSpec& spec) {
     MeasuredMode m;
     m.frequency_hz = frequency_hz(result.eigenvalues[k - 1]);
     m.label = described[k - 1].label.empty() ? "mode " + std::to_string(k) : described[k - 1].label;
-    m.pairing.kind = PairingRule::Kind::ModelIndex;
+    // With shapes, pair by MAC as for real test data: index pairing would tie a measured mode to
+    // whichever mode happens to be k-th while modes cross on the way from a far start.
+    m.pairing.kind = spec.shapes ? PairingRule::Kind::Mac : PairingRule::Kind::ModelIndex;
     m.pairing.model_index = k;
     m.source_line = spec.source_line;
     if (spec.shapes) {

@@ -1,0 +1,143 @@
+#pragma once
+/// \file objective.hpp
+/// The calibration misfit (SAND2015-11101 eq. 4) as a function of the physical parameters p, with
+/// its adjoint gradient (eqs. 12-21, extended to mass parameters), and its least-squares
+/// residual form for Gauss-Newton.
+///
+/// \f[ J(p) = \sum_i \frac{\beta_i}{2}\, r_i^2 + \sum_i \frac{\kappa_i}{2}\, \|e_i\|^2 + \frac{\alpha}{2}\|x(p) - x_0\|^2,
+///     \qquad r_i = \frac{\lambda_{m(i)} - \lambda_{m,i}}{\lambda_{m,i}},
+///     \qquad e_i = (I - \hat\phi_i \hat\phi_i^T)\,\frac{P u_{m(i)}}{\|P u_{m(i)}\|} \f]
+///
+/// - \f$m(i)\f$ is the model mode paired with measured mode i, re-established at every evaluation
+///   (by MAC at the sensors, by model index, or by mode family), so that modes swapping order as p
+///   changes do not corrupt the objective.
+/// - Shape misfit: \f$\|e_i\|^2 = 1 - \mathrm{MAC}(P u, \phi_i)\f$, with P the sensor selection and
+///   \f$\hat\phi_i = \phi_i/\|\phi_i\|\f$. It is invariant to the sign and scale of the measured shape
+///   (test data arrive in arbitrary units and signs) and of the model shape (whose amplitude at the
+///   sensors changes with p even though \f$u^T M u = 1\f$, which would otherwise let the optimizer
+///   trade shape for amplitude); it lies in [0, 1], is the MAC users already read, and is a
+///   least-squares residual vector for Gauss-Newton.
+/// - Regularization (Tikhonov) acts in the optimizer's scaled variables x (log10 p for log scaling,
+///   p / reference for linear), toward the initial values.
+///
+/// Gradient, by the adjoint: with \f$g_i = (K - \lambda_i M) u_i\f$ and \f$b_i = u_i^T M u_i - 1\f$,
+/// \f[ \nabla_p J = J_p + \sum_i w_i^T (K_{,j} - \lambda_i M_{,j}) u_i + \eta_i\, u_i^T M_{,j} u_i, \quad
+///     w_i = w_{0i} + J_{\lambda_i} u_i,\quad \eta_i = -\tfrac12 u_i^T J_{u_i}, \f]
+/// where \f$(K - \lambda_i M) w_{0i} = (M u_i u_i^T - I) J_{u_i}\f$, \f$u_i^T M w_{0i} = 0\f$. For the
+/// eigenvalue-only objective \f$w_{0i} = 0\f$: no linear solve at all.
+///
+/// \code
+/// modalcal::Objective objective(problem);
+/// modalcal::Evaluation e = objective.evaluate(problem.initial_values(), modalcal::Need::Gradient);
+/// if (e.ok) std::cout << e.value << " " << e.gradient.transpose();
+/// \endcode
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "modalcal/assembly.hpp"
+#include "modalcal/eigen.hpp"
+#include "modalcal/problem.hpp"
+
+namespace modalcal {
+
+/// Maps physical parameters p to the optimizer's dimensionless variables x and back:
+/// none: x = p; linear: x = p / reference; log: x = log10 p.
+class ParameterScaling {
+ public:
+  explicit ParameterScaling(const std::vector<Parameter>& parameters);
+  /// Same parameters, every one with `scaling`.
+  ParameterScaling(const std::vector<Parameter>& parameters, Scaling scaling);
+  Vector to_scaled(const Vector& p) const;
+  Vector to_physical(const Vector& x) const;
+  /// dp_j / dx_j and d²p_j / dx_j² at x.
+  Vector first_derivative(const Vector& x) const;
+  Vector second_derivative(const Vector& x) const;
+  Scaling scaling(int j) const { return scaling_[j]; }
+
+ private:
+  std::vector<Scaling> scaling_;
+  Vector reference_;
+};
+
+struct ObjectiveOptions {
+  /// Tikhonov weight alpha (in scaled variables, toward the initial values). Range: >= 0.
+  double regularization = 0.0;
+  /// Model modes computed beyond the highest one that could be paired; they make MAC pairing
+  /// robust and deflate the adjoint solves. Range: >= 1.
+  int extra_modes = 4;
+  /// Relative residual at which the deflated adjoint/sensitivity solves stop. Range: (0, 1e-4].
+  double linear_tolerance = 1e-11;
+  /// Iteration limit of those solves. Range: >= 1.
+  int max_linear_iterations = 300;
+  /// Two model eigenvalues closer than this (relative) are reported as (nearly) repeated.
+  /// Range: (0, 1).
+  double close_eigenvalue_tolerance = 1e-4;
+  /// Scaling of the regularization variables; per parameter from the problem when unset.
+  bool IsValid(std::string* error) const;
+};
+
+/// One measured mode and the model mode it was paired with at this evaluation.
+struct PairedMode {
+  int measured = 0;             ///< 0-based index into Problem::measured
+  int model = 0;                ///< 0-based elastic model mode index
+  double measured_hz = 0, model_hz = 0;
+  double relative_error = 0;    ///< r_i = (lambda - lambda_m) / lambda_m
+  double mac = -1;              ///< MAC at the sensors, -1 without a measured shape
+};
+
+enum class Need { Value, Gradient, Jacobian };
+
+struct Evaluation {
+  bool ok = false;
+  std::string message;               ///< why not ok (failed solve, pairing impossible)
+  double value = 0;
+  double eigenvalue_term = 0, shape_term = 0, regularization_term = 0;
+  Vector gradient;                   ///< dJ/dp (physical), with Need::Gradient or Jacobian
+  /// Least-squares residuals, J = 1/2 |residuals|^2 + regularization: sqrt(beta_i) r_i, then
+  /// sqrt(kappa_i) e_i for each mode with a shape.
+  Vector residuals;
+  Matrix jacobian;                   ///< d residuals / dp, with Need::Jacobian
+  std::vector<PairedMode> pairs;
+  std::vector<std::string> warnings; ///< e.g. nearly repeated eigenvalues, pairing changed
+  ModalResult modal;
+  int linear_solves = 0;             ///< right-hand sides solved with the factorization
+};
+
+class Objective {
+ public:
+  /// \throws std::invalid_argument for invalid options, or a problem without measured modes.
+  explicit Objective(const Problem& problem, ObjectiveOptions options = {});
+  ~Objective();
+  Objective(const Objective&) = delete;
+  Objective& operator=(const Objective&) = delete;
+
+  Evaluation evaluate(const Vector& p, Need need = Need::Value);
+  const Problem& problem() const { return problem_; }
+  const ObjectiveOptions& options() const { return options_; }
+  /// The variables the regularization acts in (the problem file's scaling).
+  const ParameterScaling& regularization_scaling() const { return regularization_scaling_; }
+  const ParametricSystem& system() const { return *system_; }
+  int num_parameters() const { return system_->num_parameters(); }
+  int num_residuals() const { return num_residuals_; }
+  /// Forward solves and linear solves (right-hand sides) since construction.
+  int forward_solves() const { return forward_solves_; }
+  int linear_solves() const { return linear_solves_; }
+
+ private:
+  struct Workspace;
+  const Problem& problem_;
+  ObjectiveOptions options_;
+  ParameterScaling regularization_scaling_;
+  std::unique_ptr<ParametricSystem> system_;
+  std::unique_ptr<ModalSolver> solver_;
+  std::unique_ptr<Workspace> workspace_;
+  int num_residuals_ = 0;
+  int forward_solves_ = 0, linear_solves_ = 0;
+};
+
+/// Modal assurance criterion \f$ (a^T b)^2 / ((a^T a)(b^T b)) \f$ (0 if either is zero).
+double mac(const Vector& a, const Vector& b);
+
+}  // namespace modalcal

@@ -1,0 +1,99 @@
+#pragma once
+/// \file reduced.hpp
+/// Reduced-space calibration: minimize \f$\hat J(p) = J(\lambda(p), u(p), p)\f$ subject to
+/// \f$\underline p \le p \le \overline p\f$ (SAND2015-11101 eq. 6), every evaluation a forward
+/// modal solve and every gradient an adjoint (see objective.hpp).
+///
+/// The optimizers work in dimensionless variables x (ParameterScaling: none, linear p/p_ref, or
+/// log10 p) because parameters of very different magnitude (foam moduli ~1e4, joint stiffness
+/// ~1e6) otherwise make the problem badly conditioned (the report's Figures 3-4).
+///
+/// - `Method::Lbfgs`: projected line-search limited-memory BFGS, the report's algorithm: the
+///   quasi-Newton step acts on the variables not held at a bound, the step is projected onto the
+///   bounds, and a backtracking Armijo search along the projected path accepts it.
+/// - `Method::GaussNewton`: the same projected search along a Levenberg-damped Gauss-Newton step
+///   \f$(J_r^T J_r + \alpha I + \mu D)\, d = -g\f$ from the residual Jacobian \f$J_r\f$
+///   (eigenvector sensitivities for shape terms).
+///
+/// A forward solve that fails at a trial point (e.g. a negative modulus without bounds) counts
+/// as an infinite objective: the search backtracks instead of aborting. Every run ends with a
+/// termination type, the best iterate and the reason.
+///
+/// \code
+/// modalcal::Objective objective(problem);
+/// modalcal::ReducedOptions options;          // L-BFGS, bounds on, scaling from the problem file
+/// modalcal::ReducedSummary s = modalcal::minimize_reduced(objective, problem.initial_values(), options);
+/// std::cout << s.FullReport();
+/// \endcode
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modalcal/objective.hpp"
+
+namespace modalcal {
+
+enum class TerminationType {
+  Converged,           ///< projected gradient below tolerance
+  MaxIterations,
+  LineSearchFailed,    ///< no decrease along the search direction (at the best point found)
+  ForwardSolveFailed,  ///< the initial point could not be evaluated
+};
+std::string to_string(TerminationType type);
+
+struct IterationRecord {
+  int iteration = 0;
+  double objective = 0;
+  double gradient_norm = 0;     ///< projected gradient norm in the optimizer's variables
+  double step_norm = 0;         ///< |x_k - x_{k-1}|
+  double parameter_error = NAN; ///< max_j |p_j / p_true_j - 1| when the truth is known
+  int forward_solves = 0;       ///< cumulative
+  Vector p;
+};
+
+struct ReducedOptions {
+  enum class Method { Lbfgs, GaussNewton };
+  Method method = Method::Lbfgs;
+  /// Range: >= 0 (0 only evaluates the start).
+  int max_iterations = 100;
+  /// Stop when the projected gradient norm (scaled variables) falls below this. Range: >= 0.
+  double gradient_tolerance = 1e-10;
+  /// ... or below this times its initial value. Range: [0, 1).
+  double relative_gradient_tolerance = 1e-12;
+  /// L-BFGS memory. Range: >= 1.
+  int memory = 10;
+  /// Use the parameters' bounds; without them only log scaling keeps p positive. 
+  bool use_bounds = true;
+  /// Override of every parameter's scaling (the problem file's when unset).
+  std::optional<Scaling> scaling;
+  /// Armijo sufficient-decrease constant. Range: (0, 0.5).
+  double armijo = 1e-4;
+  /// Largest number of backtracking steps per iteration. Range: >= 1.
+  int max_line_search_steps = 30;
+  /// Longest step in scaled variables (a decade for log scaling). Range: > 0.
+  double max_step = 1.0;
+  /// Called after every iteration (progress display).
+  std::function<void(const IterationRecord&)> progress;
+  bool IsValid(std::string* error) const;
+};
+
+struct ReducedSummary {
+  TerminationType termination = TerminationType::ForwardSolveFailed;
+  std::string message;
+  std::string method;
+  Vector initial, final;            ///< physical parameters; final is the best iterate
+  double initial_objective = NAN, final_objective = NAN;
+  int iterations = 0;
+  int forward_solves = 0, linear_solves = 0;
+  double seconds = 0;
+  std::vector<IterationRecord> history;
+  bool converged() const { return termination == TerminationType::Converged; }
+  std::string BriefReport() const;
+  std::string FullReport() const;
+};
+
+ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);
+
+}  // namespace modalcal

@@ -1,0 +1,94 @@
+// `fullspace_calib calibrate PROBLEM`: calibration with a report in the style of the report's
+// Tables 1-4 (parameters: initial, computed, true, bounds) and Table 7 (measured vs predicted).
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+#include "cli/calibration_report.hpp"
+#include "cli/cli_common.hpp"
+#include "cli/commands.hpp"
+#include "modalcal/reduced.hpp"
+
+namespace modalcal::cli {
+
+namespace {
+
+struct CalibrateArgs {
+  std::string problem;
+  std::string method = "reduced-lbfgs";
+  std::string scaling;
+  bool no_bounds = false;
+  std::string json;
+  double refine = 0;
+  int max_iterations = 100;
+  double start_factor = 1;
+  double regularization = 0;
+  bool quiet = false;
+};
+
+Scaling parse_scaling(const std::string& name) {
+  if (name == "none") return Scaling::None;
+  if (name == "linear") return Scaling::Linear;
+  if (name == "log") return Scaling::Log;
+  throw InputError("--scaling " + name + ": expected none, linear or log");
+}
+
+int run_calibrate(const CalibrateArgs& args) {
+  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  ObjectiveOptions objective_options;
+  objective_options.regularization = args.regularization;
+  Objective objective(problem, objective_options);
+  ReducedOptions options;
+  options.method = args.method == "reduced-gauss-newton" ? ReducedOptions::Method::GaussNewton
+                                                         : ReducedOptions::Method::Lbfgs;
+  options.max_iterations = args.max_iterations;
+  options.use_bounds = !args.no_bounds;
+  if (!args.scaling.empty()) options.scaling = parse_scaling(args.scaling);
+  if (!args.quiet)
+    options.progress = [](const IterationRecord& r) {
+      if (getenv("MODALCAL_DEBUG")) { for (int j = 0; j < r.p.size(); ++j) std::fprintf(stderr, " %.4e", r.p[j]); std::fprintf(stderr, "\n"); }
+      std::fprintf(stderr, "  iter %3d  J = %.6e  |pg| = %.3e  solves %d%s\n", r.iteration, r.objective,
+                   r.gradient_norm, r.forward_solves,
+                   std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
+    };
+  Vector p0 = problem.initial_values() * args.start_factor;
+  std::printf("%s: %d parameters, %zu measured modes, %d DOFs, method %s\n", problem.path.c_str(),
+              objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
+  const ReducedSummary summary = minimize_reduced(objective, p0, options);
+  std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
+
+  CalibrationReport report = make_report(objective, summary);
+  report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},
+                     {"bounds", !args.no_bounds},
+                     {"start_factor", args.start_factor},
+                     {"regularization", args.regularization}};
+  std::fputs(report.text.c_str(), stdout);
+  write_json(args.json, report.json(), problem);
+  return summary.final.size() ? 0 : 1;
+}
+
+}  // namespace
+
+void register_calibrate_command(CLI::App& app, int* exit_code) {
+  auto args = std::make_shared<CalibrateArgs>();
+  CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the parameters against the measured modes");
+  cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--method", args->method, "reduced-lbfgs (default) or reduced-gauss-newton")
+      ->check(CLI::IsMember({"reduced-lbfgs", "reduced-gauss-newton"}));
+  cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
+      ->check(CLI::IsMember({"none", "linear", "log"}));
+  cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
+  cmd->add_option("--json", args->json, "write the report as JSON to this file");
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--quiet", args->quiet, "no progress lines");
+  cmd->callback([args, exit_code] { *exit_code = run_calibrate(*args); });
+}
+
+}  // namespace modalcal::cli

@@ -1,0 +1,88 @@
+#include "cli/calibration_report.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace modalcal::cli {
+
+nlohmann::json CalibrationReport::json() const {
+  nlohmann::json out = summary;
+  out["parameters"] = parameters;
+  out["modes"] = modes;
+  out["settings"] = settings;
+  return out;
+}
+
+CalibrationReport make_report(Objective& objective, const ReducedSummary& summary) {
+  const Problem& problem = objective.problem();
+  CalibrationReport report;
+  char line[320];
+  std::snprintf(line, sizeof line, "%-14s %13s %13s %13s %10s %11s %11s\n", "parameter", "initial", "computed", "true",
+                "error %", "lower", "upper");
+  report.text = line;
+  report.parameters = nlohmann::json::array();
+  const bool have_final = summary.final.size() == static_cast<int>(problem.parameters.size());
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    const double final_value = have_final ? summary.final[j] : NAN;
+    nlohmann::json entry = {{"name", q.name}, {"initial", summary.initial[j]}, {"final", final_value},
+                            {"lower", q.lower}, {"upper", q.upper}};
+    std::string truth = "-", error = "-";
+    if (q.truth) {
+      entry["truth"] = *q.truth;
+      char buffer[32];
+      std::snprintf(buffer, sizeof buffer, "%.4e", *q.truth);
+      truth = buffer;
+      std::snprintf(buffer, sizeof buffer, "%.4f", 100 * (final_value / *q.truth - 1));
+      error = buffer;
+    }
+    report.parameters.push_back(entry);
+    std::snprintf(line, sizeof line, "%-14s %13.4e %13.4e %13s %10s %11.3e %11.3e\n", q.name.c_str(),
+                  summary.initial[j], final_value, truth.c_str(), error.c_str(), q.lower, q.upper);
+    report.text += line;
+  }
+  report.modes = nlohmann::json::array();
+  if (have_final) {
+    const Evaluation e = objective.evaluate(summary.final);
+    report.text += "\n";
+    std::snprintf(line, sizeof line, "%-12s %10s %14s %14s %9s %7s\n", "measured", "model mode", "measured [Hz]",
+                  "predicted [Hz]", "error %", "MAC");
+    report.text += line;
+    for (const PairedMode& pair : e.pairs) {
+      const MeasuredMode& m = problem.measured[pair.measured];
+      const std::string label = m.label.empty() ? "mode " + std::to_string(pair.measured + 1) : m.label;
+      const double error = 100 * (pair.model_hz / pair.measured_hz - 1);
+      nlohmann::json entry = {{"label", label}, {"measured_hz", pair.measured_hz}, {"predicted_hz", pair.model_hz},
+                              {"error_percent", error}, {"model_mode", pair.model + 1}};
+      if (pair.mac >= 0) entry["mac"] = pair.mac;
+      report.modes.push_back(entry);
+      std::snprintf(line, sizeof line, "%-12s %10d %14.3f %14.3f %9.4f %7s\n", label.c_str(), pair.model + 1,
+                    pair.measured_hz, pair.model_hz, error,
+                    pair.mac >= 0 ? std::to_string(pair.mac).substr(0, 6).c_str() : "-");
+      report.text += line;
+    }
+    for (const std::string& w : e.warnings) report.text += "warning: " + w + "\n";
+  }
+  nlohmann::json history = nlohmann::json::array();
+  for (const IterationRecord& r : summary.history) {
+    nlohmann::json h = {{"iteration", r.iteration}, {"objective", r.objective}, {"gradient_norm", r.gradient_norm},
+                        {"forward_solves", r.forward_solves}};
+    if (!std::isnan(r.parameter_error)) h["parameter_error"] = r.parameter_error;
+    history.push_back(h);
+  }
+  report.summary = {{"problem", problem.path},
+                    {"method", summary.method},
+                    {"converged", summary.converged()},
+                    {"status", to_string(summary.termination)},
+                    {"message", summary.message},
+                    {"iterations", summary.iterations},
+                    {"initial_objective", summary.initial_objective},
+                    {"final_objective", summary.final_objective},
+                    {"forward_solves", summary.forward_solves},
+                    {"linear_solves", summary.linear_solves},
+                    {"time_s", summary.seconds},
+                    {"history", history}};
+  return report;
+}
+
+}  // namespace modalcal::cli
