@@ -72,7 +72,8 @@ struct ReducedOptions {
   double armijo = 1e-4;
   /// Largest number of backtracking steps per iteration. Range: >= 1.
   int max_line_search_steps = 30;
-  /// Longest step in scaled variables (a decade for log scaling). Range: > 0.
+  /// Longest step per variable, in scaled units (a decade for log scaling), or relative to the
+  /// starting value for unscaled variables. Range: > 0.
   double max_step = 1.0;
   /// Called after every iteration (progress display).
   std::function<void(const IterationRecord&)> progress;
@@ -87,6 +88,8 @@ struct ReducedSummary {
   double initial_objective = NAN, final_objective = NAN;
   int iterations = 0;
   int forward_solves = 0, linear_solves = 0;
+  /// Trial points whose evaluation failed (e.g. K indefinite) and were backtracked from.
+  int failed_evaluations = 0;
   double seconds = 0;
   std::vector<IterationRecord> history;
   bool converged() const { return termination == TerminationType::Converged; }

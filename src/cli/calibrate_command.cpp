@@ -49,7 +49,6 @@ int run_calibrate(const CalibrateArgs& args) {
   if (!args.scaling.empty()) options.scaling = parse_scaling(args.scaling);
   if (!args.quiet)
     options.progress = [](const IterationRecord& r) {
-      if (getenv("MODALCAL_DEBUG")) { for (int j = 0; j < r.p.size(); ++j) std::fprintf(stderr, " %.4e", r.p[j]); std::fprintf(stderr, "\n"); }
       std::fprintf(stderr, "  iter %3d  J = %.6e  |pg| = %.3e  solves %d%s\n", r.iteration, r.objective,
                    r.gradient_norm, r.forward_solves,
                    std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());

@@ -80,6 +80,7 @@ CalibrationReport make_report(Objective& objective, const ReducedSummary& summar
                     {"final_objective", summary.final_objective},
                     {"forward_solves", summary.forward_solves},
                     {"linear_solves", summary.linear_solves},
+                    {"failed_evaluations", summary.failed_evaluations},
                     {"time_s", summary.seconds},
                     {"history", history}};
   return report;

@@ -6,4 +6,5 @@ namespace modalcal::cli {
 void register_modes_command(CLI::App& app, int* exit_code);
 void register_calibrate_command(CLI::App& app, int* exit_code);
 void register_check_command(CLI::App& app, int* exit_code);
+void register_study_command(CLI::App& app, int* exit_code);
 }  // namespace modalcal::cli

@@ -119,6 +119,7 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
     }
     summary.forward_solves = objective.forward_solves() - forward_before;
     summary.linear_solves = objective.linear_solves() - linear_before;
+    summary.failed_evaluations = problem.failed_evaluations();
     summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return summary;
   };
@@ -136,6 +137,13 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
   };
 
   const Vector x0 = problem.project(problem.scaling().to_scaled(p0));
+  // Steps are capped per variable in units of O(1): scaled variables are O(1) already; an
+  // unscaled one is measured against its starting magnitude, so that the cap limits relative
+  // changes and does not itself cripple the unscaled case.
+  Vector unit = Vector::Ones(x0.size());
+  for (int j = 0; j < x0.size(); ++j)
+    if (problem.scaling().scaling(j) == Scaling::None && x0[j] != 0) unit[j] = std::abs(x0[j]);
+  auto longest = [&](const Vector& d) { return d.cwiseQuotient(unit).lpNorm<Eigen::Infinity>(); };
   Point current = problem.evaluate(x0, need);
   if (!current.ok) return finish(TerminationType::ForwardSolveFailed, "cannot evaluate the start: " + current.message, current);
   summary.initial_objective = current.value;
@@ -180,14 +188,13 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
       memory.clear();
     }
     double step = 1.0;
-    if (!gauss_newton && memory.empty()) step = std::min(1.0, 1.0 / direction.lpNorm<Eigen::Infinity>());
-    step = std::min(step, options.max_step / direction.lpNorm<Eigen::Infinity>());
+    if (!gauss_newton && memory.empty()) step = std::min(1.0, 1.0 / longest(direction));
+    step = std::min(step, options.max_step / longest(direction));
     Point next = problem.line_search(current, direction, need, step);
     if (!next.ok && !gauss_newton && !memory.empty()) {
       memory.clear();  // a stale quasi-Newton model: retry along the steepest descent
       direction = -masked(current.gradient, active);
-      next = problem.line_search(current, direction, need,
-                                 std::min(1.0, options.max_step) / direction.lpNorm<Eigen::Infinity>());
+      next = problem.line_search(current, direction, need, std::min(1.0, options.max_step) / longest(direction));
     }
     if (!next.ok) {
       summary.iterations = k - 1;
@@ -214,9 +221,10 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
 std::string ReducedSummary::BriefReport() const {
   char line[320];
   std::snprintf(line, sizeof line,
-                "%s: %s after %d iterations, objective %.6e -> %.6e, %d forward solves, %d linear solves, %.2f s",
+                "%s: %s after %d iterations, objective %.6e -> %.6e, %d forward solves (%d failed), %d linear "
+                "solves, %.2f s",
                 method.c_str(), to_string(termination).c_str(), iterations, initial_objective, final_objective,
-                forward_solves, linear_solves, seconds);
+                forward_solves, failed_evaluations, linear_solves, seconds);
   return line;
 }
 

@@ -25,6 +25,7 @@ ScaledProblem::Point ScaledProblem::evaluate(const Vector& x, Need need) {
   point.p = scaling_.to_physical(x);
   const Evaluation e = objective_.evaluate(point.p, need);
   if (!e.ok) {
+    ++failed_evaluations_;
     point.message = e.message;
     return point;
   }

@@ -35,12 +35,14 @@ class ScaledProblem {
   Objective& objective() { return objective_; }
   const Vector& lower() const { return lower_; }
   const Vector& upper() const { return upper_; }
+  int failed_evaluations() const { return failed_evaluations_; }
 
  private:
   Objective& objective_;
   const ReducedOptions& options_;
   ParameterScaling scaling_;
   Vector lower_, upper_;
+  int failed_evaluations_ = 0;
 };
 
 }  // namespace modalcal::detail

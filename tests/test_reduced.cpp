@@ -1,0 +1,176 @@
+// Reduced-space calibration: recovery from far starts (L-BFGS and Gauss-Newton), modes that
+// swap order on the way, failed forward solves during a line search, the LFU synthetic study,
+// and the identifiability flag of the LFU experimental case.
+
+#include <cmath>
+
+#include "modalcal/identifiability.hpp"
+#include "modalcal/reduced.hpp"
+#include "test_util.hpp"
+
+namespace modalcal {
+namespace {
+
+using testing::SourcePath;
+
+// Two independent oscillators (point masses on springs to ground, moving along x only):
+// omega_a^2 = ka / m, omega_b^2 = kb / m. One sensor on each mass, so each measured shape
+// names its mass.
+Problem TwoOscillators(double ka_true, double kb_true, double ka0, double kb0) {
+  Problem problem;
+  problem.path = "two-oscillators";
+  Model& model = problem.model;
+  for (int i = 0; i < 2; ++i) model.add_node(i + 1, Vec3(i, 0, 0));
+  FixedDofs lateral;
+  lateral.name = "lateral";
+  lateral.nodes = {0, 1};
+  lateral.components = {false, true, true, false, false, false};
+  model.fixed.push_back(lateral);
+  const char* names[2] = {"a", "b"};
+  const double truth[2] = {ka_true, kb_true}, start[2] = {ka0, kb0};
+  const double m = 2.0;
+  for (int i = 0; i < 2; ++i) {
+    PointMass pm;
+    pm.name = std::string("mass_") + names[i];
+    pm.node = i;
+    pm.mass = model.add_property(pm.name + ".mass", m);
+    model.point_masses.push_back(pm);
+    GroundSpring s;
+    s.name = std::string("spring_") + names[i];
+    s.nodes = {i};
+    s.stiffness[0] = model.add_property(s.name + ".kx", start[i]);
+    model.ground_springs.push_back(s);
+    Parameter p;
+    p.name = std::string("k") + names[i];
+    p.targets = {s.stiffness[0]};
+    p.initial = start[i];
+    p.lower = 1.0;
+    p.upper = 1e7;
+    p.scaling = Scaling::Log;
+    p.reference = start[i];
+    p.truth = truth[i];
+    problem.parameters.push_back(p);
+    problem.sensors.push_back({i, 0, std::string("mass ") + names[i]});
+  }
+  for (int i = 0; i < 2; ++i) {
+    MeasuredMode mode;
+    mode.label = std::string("mass ") + names[i];
+    mode.frequency_hz = std::sqrt(truth[i] / m) / (2 * M_PI);
+    mode.shape = Vector::Zero(2);
+    mode.shape[i] = (i == 0 ? -3.0 : 0.5);  // arbitrary sign and scale, as test data come
+    mode.pairing.kind = PairingRule::Kind::Mac;
+    problem.measured.push_back(mode);
+  }
+  problem.options.num_modes = 1;
+  problem.options.max_rigid_modes = 0;
+  return problem;
+}
+
+double MaxRelativeError(const Vector& p, const Vector& truth) {
+  return (p.array() / truth.array() - 1).abs().maxCoeff();
+}
+
+class Recovery : public ::testing::TestWithParam<ReducedOptions::Method> {};
+
+TEST_P(Recovery, ModesThatSwapOrderStillConvergeToTheTruth) {
+  // Truth: mass a's mode is the higher one; start: it is the lower one. Pairing follows the
+  // shapes, so each measured mode keeps its mass's model mode through the crossing.
+  const Problem problem = TwoOscillators(4.0e4, 1.0e4, 1.0e3, 2.0e4);
+  ObjectiveOptions objective_options;
+  objective_options.extra_modes = 1;
+  Objective objective(problem, objective_options);
+  const Evaluation start = objective.evaluate(problem.initial_values());
+  ASSERT_TRUE(start.ok) << start.message;
+  EXPECT_EQ(start.pairs[0].model, 0);  // mass a is the lowest mode at the start
+  ReducedOptions options;
+  options.method = GetParam();
+  const ReducedSummary s = minimize_reduced(objective, problem.initial_values(), options);
+  EXPECT_TRUE(s.converged()) << s.FullReport();
+  EXPECT_LT(MaxRelativeError(s.final, problem.truth_values()), 1e-6) << s.FullReport();
+  const Evaluation end = objective.evaluate(s.final);
+  EXPECT_EQ(end.pairs[0].model, 1);  // and the highest at the truth
+}
+
+TEST_P(Recovery, FailedForwardSolvesBacktrackInsteadOfAborting) {
+  // No bounds and no scaling: a full step from far away makes a stiffness negative, K becomes
+  // indefinite and the forward solve fails; the search must back off and still converge.
+  const Problem problem = TwoOscillators(4.0e4, 1.0e4, 3.0e5, 2.0e5);
+  ObjectiveOptions objective_options;
+  objective_options.extra_modes = 1;
+  Objective objective(problem, objective_options);
+  ReducedOptions options;
+  options.method = GetParam();
+  options.use_bounds = false;
+  options.scaling = Scaling::None;
+  options.max_step = 10.0;  // allow steps far beyond the current value
+  options.max_iterations = 200;
+  const ReducedSummary s = minimize_reduced(objective, problem.initial_values(), options);
+  EXPECT_GT(s.failed_evaluations, 0) << s.FullReport();
+  EXPECT_TRUE(s.final.size() == 2 && s.final.allFinite());
+  EXPECT_LT(MaxRelativeError(s.final, problem.truth_values()), 1e-4) << s.FullReport();
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, Recovery,
+                         ::testing::Values(ReducedOptions::Method::Lbfgs, ReducedOptions::Method::GaussNewton),
+                         [](const auto& info) {
+                           return info.param == ReducedOptions::Method::Lbfgs ? "Lbfgs" : "GaussNewton";
+                         });
+
+TEST(Reduced, UnevaluableStartEndsWithStatusAndReason) {
+  Problem problem = TwoOscillators(4.0e4, 1.0e4, 1.0e3, 2.0e4);
+  Objective objective(problem);
+  Vector start = problem.initial_values();
+  start[0] = -5.0e4;  // indefinite K
+  ReducedOptions options;
+  options.use_bounds = false;
+  options.scaling = Scaling::None;
+  const ReducedSummary s = minimize_reduced(objective, start, options);
+  EXPECT_EQ(s.termination, TerminationType::ForwardSolveFailed);
+  EXPECT_NE(s.message.find("indefinite"), std::string::npos) << s.message;
+}
+
+TEST(Reduced, OptionsAreValidatedNamingTheField) {
+  ReducedOptions options;
+  options.memory = 0;
+  std::string error;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("memory"), std::string::npos);
+  options = ReducedOptions();
+  options.armijo = 0.7;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("armijo"), std::string::npos);
+}
+
+TEST(Lfu, SyntheticStudyLbfgsRecoversAllParametersWithin25Iterations) {
+  const Problem problem = load_problem(SourcePath("problems/lfu/synthetic.yaml"));
+  Objective objective(problem);
+  ReducedOptions options;  // L-BFGS, bounds on, log scaling from the problem file
+  options.max_iterations = 25;
+  const ReducedSummary s = minimize_reduced(objective, problem.initial_values(), options);
+  ASSERT_EQ(s.final.size(), 5);
+  EXPECT_LT(MaxRelativeError(problem.initial_values(), problem.truth_values()), 0.91);  // 10x low start
+  EXPECT_LT(MaxRelativeError(s.final, problem.truth_values()), 0.005) << s.FullReport();
+  EXPECT_LE(s.iterations, 25);
+}
+
+TEST(Lfu, ExperimentalCaseMatchesTheAxialModesAndFlagsAPoorlyIdentifiedParameter) {
+  const Problem problem = load_problem(SourcePath("problems/lfu/experimental.yaml"));
+  Objective objective(problem);
+  ReducedOptions options;
+  const ReducedSummary s = minimize_reduced(objective, problem.initial_values() * 10, options);
+  ASSERT_TRUE(s.converged()) << s.FullReport();
+  const Evaluation e = objective.evaluate(s.final);
+  ASSERT_TRUE(e.ok);
+  ASSERT_EQ(e.pairs.size(), 2u);
+  EXPECT_NEAR(e.pairs[0].model_hz, 1195.0, 0.1);
+  EXPECT_NEAR(e.pairs[1].model_hz, 2085.0, 0.1);
+  // Three parameters, two frequencies: one direction is unconstrained, and the tool names the
+  // parameter that carries it; the joint stiffness, which both modes feel, is identified.
+  const Identifiability id = analyze_identifiability(objective, s.final, ParameterScaling(problem.parameters));
+  EXPECT_EQ(id.singular_values[2], 0.0);
+  EXPECT_FALSE(id.poorly_identified[0]) << id.report;
+  EXPECT_TRUE(id.poorly_identified[1] || id.poorly_identified[2]) << id.report;
+}
+
+}  // namespace
+}  // namespace modalcal
