@@ -13,25 +13,26 @@ namespace {
 
 using testing::WriteTempFile;
 
-// A two-block cantilever (> 300 DOFs, so the sparse solver path is used) with a joint to a
+// A two-block cantilever with a joint to a
 // reference node carrying a point mass, springs at the root, sensors on the top edge, and six
-// measured modes with shapes synthesized at the truth values.
+// measured modes with shapes synthesized at the truth values. The section is not square, so no
+// two modes share an eigenvalue (their shapes would not be differentiable).
 const char* kModel = R"(
 mesh:
   element: hex8
   element_size: 0.5
   boxes:
-    - {block: a, min: [0, 0, 0], max: [3, 1, 1]}
-    - {block: b, min: [3, 0, 0], max: [5, 1, 1]}
+    - {block: a, min: [0, 0, 0], max: [3, 1, 1.25]}
+    - {block: b, min: [3, 0, 0], max: [5, 1, 1.25]}
 blocks:
   a: {E: 2.0e3, nu: 0.3, density: 1.0, stiffness_scale: 1.0, mass_scale: 1.0}
   b: {K: 1.5e3, G: 0.8e3, density: 2.0}
 node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 1, 1]}}
-  tip: {box: {min: [5, 0, 0], max: [5, 1, 1]}}
+  root: {box: {min: [0, 0, 0], max: [0, 1, 1.25]}}
+  tip: {box: {min: [5, 0, 0], max: [5, 1, 1.25]}}
 reference_nodes:
-  r: [5.5, 0.5, 0.5]
-  g: [5.5, 0.5, 0.5]
+  r: [5.5, 0.5, 0.625]
+  g: [5.5, 0.5, 0.625]
 rigid_couplings:
   - {reference: r, node_set: tip}
 joints:
@@ -55,7 +56,7 @@ parameters:
   inertia: {targets: [pm.Ixx], initial: 0.01, lower: 0.001, upper: 1, truth: 0.012}
 sensors:
   - {node_set: tip, directions: [x, y, z]}
-  - {at: [2.5, 1, 1], directions: [y, z]}
+  - {at: [2.5, 1, 1.25], directions: [y, z]}
 measured:
   synthetic: {modes: [1, 2, 3, 4, 5, 6], shapes: true}
 options:
@@ -107,7 +108,7 @@ TEST(Objective, EigenvalueOnlyGradientNeedsNoLinearSolve) {
   ASSERT_TRUE(e.ok) << e.message;
   EXPECT_EQ(e.linear_solves, 0);
   const GradientCheck check = check_gradient(objective, problem.initial_values());
-  EXPECT_LT(check.max_relative_error, 1e-5) << check.report;
+  EXPECT_LT(check.max_relative_error, 1e-4) << check.report;
 }
 
 TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
@@ -120,15 +121,44 @@ TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
   // Gauss-Newton consistency: gradient = J^T r (no regularization here).
   EXPECT_LT((e.gradient - e.jacobian.transpose() * e.residuals).norm(), 1e-8 * e.gradient.norm());
   for (int j = 0; j < p.size(); ++j) {
-    const double h = 1e-6 * std::abs(p[j]);
+    const double h = 1e-5 * std::abs(p[j]);
     Vector plus = p, minus = p;
     plus[j] += h;
     minus[j] -= h;
     const Evaluation ep = objective.evaluate(plus), em = objective.evaluate(minus);
     const Vector fd = (ep.residuals - em.residuals) / (2 * h);
-    EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-5 * (fd.norm() + 1e-12))
+    EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-4 * (fd.norm() + 1e-12))
         << problem.parameters[j].name << "\nFD " << fd.transpose() << "\nJ  " << e.jacobian.col(j).transpose();
   }
+}
+
+TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
+  const Problem problem = LoadModel();
+  ObjectiveOptions options;
+  options.regularization = 1e-3;
+  Objective objective(problem, options);
+  // Away from the truth so that the second-order (residual-weighted) terms matter.
+  const Vector p = problem.initial_values();
+  const Evaluation e = objective.evaluate(p, Need::Hessian);
+  ASSERT_TRUE(e.ok) << e.message;
+  ASSERT_EQ(e.hessian.rows(), p.size());
+  const Matrix gauss_newton = e.jacobian.transpose() * e.jacobian;
+  Matrix fd(p.size(), p.size());
+  for (int k = 0; k < p.size(); ++k) {
+    const double h = 1e-5 * std::abs(p[k]);
+    Vector plus = p, minus = p;
+    plus[k] += h;
+    minus[k] -= h;
+    const Evaluation ep = objective.evaluate(plus, Need::Gradient), em = objective.evaluate(minus, Need::Gradient);
+    ASSERT_TRUE(ep.ok && em.ok);
+    fd.col(k) = (ep.gradient - em.gradient) / (2 * h);
+  }
+  // Compare column by column, scaled by each parameter so that units do not hide errors.
+  const Matrix D = p.asDiagonal();
+  const Matrix scaled_fd = D * fd * D, scaled = D * e.hessian * D, scaled_gn = D * gauss_newton * D;
+  EXPECT_LT((scaled - scaled_fd).norm(), 1e-4 * scaled_fd.norm()) << "exact\n" << scaled << "\nFD\n" << scaled_fd;
+  // And the second-order terms are really there: Gauss-Newton alone is clearly different.
+  EXPECT_GT((scaled_gn - scaled_fd).norm(), 1e-2 * scaled_fd.norm());
 }
 
 TEST(Objective, MacPairingFollowsModesThatSwapOrder) {

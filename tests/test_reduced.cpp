@@ -6,6 +6,7 @@
 
 #include "modalcal/identifiability.hpp"
 #include "modalcal/reduced.hpp"
+#include "reduced/scaled_problem.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -91,30 +92,31 @@ TEST_P(Recovery, ModesThatSwapOrderStillConvergeToTheTruth) {
   EXPECT_EQ(end.pairs[0].model, 1);  // and the highest at the truth
 }
 
-TEST_P(Recovery, FailedForwardSolvesBacktrackInsteadOfAborting) {
-  // No bounds and no scaling: a full step from far away makes a stiffness negative, K becomes
-  // indefinite and the forward solve fails; the search must back off and still converge.
-  const Problem problem = TwoOscillators(4.0e4, 1.0e4, 3.0e5, 2.0e5);
-  ObjectiveOptions objective_options;
-  objective_options.extra_modes = 1;
-  Objective objective(problem, objective_options);
-  ReducedOptions options;
-  options.method = GetParam();
-  options.use_bounds = false;
-  options.scaling = Scaling::None;
-  options.max_step = 10.0;  // allow steps far beyond the current value
-  options.max_iterations = 200;
-  const ReducedSummary s = minimize_reduced(objective, problem.initial_values(), options);
-  EXPECT_GT(s.failed_evaluations, 0) << s.FullReport();
-  EXPECT_TRUE(s.final.size() == 2 && s.final.allFinite());
-  EXPECT_LT(MaxRelativeError(s.final, problem.truth_values()), 1e-4) << s.FullReport();
-}
-
 INSTANTIATE_TEST_SUITE_P(Methods, Recovery,
                          ::testing::Values(ReducedOptions::Method::Lbfgs, ReducedOptions::Method::GaussNewton),
                          [](const auto& info) {
                            return info.param == ReducedOptions::Method::Lbfgs ? "Lbfgs" : "GaussNewton";
                          });
+
+TEST(Reduced, FailedForwardSolveInTheLineSearchBacktracks) {
+  // A search direction whose full step makes a stiffness negative: K is indefinite there, the
+  // forward solve fails, and the search must back off to a point it can evaluate.
+  const Problem problem = TwoOscillators(4.0e4, 1.0e4, 3.0e5, 2.0e5);
+  Objective objective(problem);
+  ReducedOptions options;
+  options.use_bounds = false;
+  options.scaling = Scaling::None;
+  detail::ScaledProblem scaled(objective, options);
+  const auto from = scaled.evaluate(problem.initial_values(), Need::Gradient);
+  ASSERT_TRUE(from.ok) << from.message;
+  Vector direction(2);
+  direction << 0.0, -4.0e5;  // the full step takes kb from 2e5 to -2e5
+  const auto accepted = scaled.line_search(from, direction, Need::Gradient, 1.0);
+  ASSERT_TRUE(accepted.ok) << accepted.message;
+  EXPECT_GE(scaled.failed_evaluations(), 1);
+  EXPECT_GT(accepted.p[1], 0.0);
+  EXPECT_LT(accepted.value, from.value);
+}
 
 TEST(Reduced, UnevaluableStartEndsWithStatusAndReason) {
   Problem problem = TwoOscillators(4.0e4, 1.0e4, 1.0e3, 2.0e4);

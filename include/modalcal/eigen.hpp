@@ -1,12 +1,19 @@
 #pragma once
 /// \file eigen.hpp
 /// The forward modal solve: the lowest modes of \f$K u = \lambda M u\f$ by shift-invert
-/// Lanczos (Spectra) on a CHOLMOD supernodal factorization of \f$K - \sigma M\f$.
+/// block Lanczos on a CHOLMOD supernodal factorization of \f$K - \sigma M\f$, with
+/// single-vector Lanczos (Spectra) as fallback and a dense solve up to 300 DOFs.
 ///
 /// The symbolic analysis (fill-reducing ordering, supernode structure) depends only on the
 /// sparsity pattern, which is fixed for a given model, so it is done once in the constructor
 /// and reused for every parameter value: inside a calibration loop each solve costs one
 /// numeric factorization plus the Lanczos iterations.
+///
+/// The block iteration (Grimes, Lewis & Simon 1994) applies \f$S = (K - \sigma M)^{-1} M\f$
+/// to a few vectors at once: CHOLMOD then solves with level-3 BLAS, 2 (4 columns) to 4
+/// (16 columns) times cheaper per right-hand side than one at a time, and little else is spent
+/// besides the solves (one product with M per block, full M-reorthogonalization, a
+/// Rayleigh-Ritz step on a small matrix, one check of the true residuals).
 ///
 /// The shift is negative (\f$\sigma = -0.3\lambda_1\f$ once \f$\lambda_1\f$ is known), so
 /// \f$K - \sigma M\f$ stays positive definite for free-free models with rigid-body modes; a
@@ -37,12 +44,36 @@ struct ModalOptions {
   /// free-free model, 0 for a supported one. More zero modes than this is reported as a
   /// singular K (missing supports or an unconnected part). Range: 0..6.
   int max_rigid_modes = 6;
-  /// Relative tolerance of the Lanczos Ritz values. Range: (0, 1e-2].
+  /// Convergence tolerance. With nev = num_modes + max_rigid_modes, block Lanczos stops when
+  /// each of the nev lowest Ritz pairs \f$(\lambda, u)\f$, \f$\theta = 1/(\lambda - \sigma)\f$,
+  /// \f$S = (K - \sigma M)^{-1} M\f$, passes both
+  /// - \f$\|S u - \theta u\|_M \le \text{tolerance}\,\theta\f$ (the residual of the
+  ///   shift-inverted problem, Spectra's test), and
+  /// - \f$\|K u - \lambda M u\|_2 \le \text{tolerance}\,|\lambda|\,\|M u\|_2 +
+  ///   \epsilon \|K\|_1 \|u\|_2\f$, the last term (\f$\epsilon = 2.2\cdot 10^{-16}\f$) being the
+  ///   rounding error of computing K u; for a rigid-body mode
+  ///   (\f$|\lambda| \le\f$ rigid_tolerance tr(K)/tr(M)),
+  ///   \f$\|K u - \lambda M u\|_2 \le \text{tolerance}\,\|K\|_1 \|u\|_2\f$.
+  ///
+  /// The Spectra fallback applies the first test only. ModalResult::residuals reports the
+  /// relative residuals reached. Range: (0, 1e-2].
   double tolerance = 1e-10;
-  /// Maximum number of restarts. Range: >= 1.
+  /// Maximum number of restarts (thick restarts of block Lanczos, implicit ones of Spectra).
+  /// Range: >= 1.
   int max_iterations = 1000;
-  /// Krylov subspace size; 0 means 2 nev + 1 (measured best, see field notes). Range: 0 or > nev.
+  /// Krylov subspace size: basis columns before a restart. 0 means automatic: for block Lanczos
+  /// max(6 nev, nev + 12 block_size), which needed no restart on the models measured (it takes
+  /// 2 n subspace_size doubles for the basis and its product with M), at least nev + 2 block_size;
+  /// for Spectra 2 nev + 1 (measured best, see field notes). Range: 0 or > nev.
   int subspace_size = 0;
+  /// Columns per block of the shift-invert block Lanczos iteration; 1 selects single-vector
+  /// Lanczos (Spectra); 0 means automatic, currently 4. CHOLMOD solves 4 right-hand sides for
+  /// about 2 times the cost of one (8 for 3 times, 16 for 4 times), while the block Krylov space
+  /// needs more columns to converge: on the LFU model at 7e4-1.5e5 DOFs, 10 modes took 26-28
+  /// single solves or 13-14 blocks of 4 or 10-11 blocks of 8, 20 modes 54-64 single solves or
+  /// 23 blocks of 4 or 16 blocks of 8, and blocks of 4 were the fastest or within noise of it.
+  /// Range: 0..64.
+  int block_size = 0;
   /// Initial shift sigma (must be < 0), or 0 to choose one from trace(K)/trace(M). After each
   /// successful solve the solver moves the shift to -0.3 times the lowest elastic eigenvalue.
   double initial_shift = 0.0;
@@ -63,7 +94,10 @@ struct ModalResult {
   Matrix rigid_modes;
   double shift = 0;                  ///< the shift used
   int factorizations = 0;
-  int operator_solves = 0;           ///< applications of (K - sigma M)^{-1}
+  int operator_solves = 0;           ///< right-hand sides solved with (K - sigma M)^{-1}
+  /// Columns per block of the Lanczos iteration that produced the modes: 0 for the dense path
+  /// (<= 300 DOFs), 1 for single-vector Lanczos (Spectra, also the fallback of the block path).
+  int block_size = 0;
   double seconds_factorize = 0, seconds_total = 0;
 };
 

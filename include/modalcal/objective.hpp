@@ -10,7 +10,8 @@
 ///
 /// - \f$m(i)\f$ is the model mode paired with measured mode i, re-established at every evaluation
 ///   (by MAC at the sensors, by model index, or by mode family), so that modes swapping order as p
-///   changes do not corrupt the objective.
+///   changes do not corrupt the objective. MAC pairing is the one-to-one assignment with the
+///   largest total MAC (Hungarian method), not greedy.
 /// - Shape misfit: \f$\|e_i\|^2 = 1 - \mathrm{MAC}(P u, \phi_i)\f$, with P the sensor selection and
 ///   \f$\hat\phi_i = \phi_i/\|\phi_i\|\f$. It is invariant to the sign and scale of the measured shape
 ///   (test data arrive in arbitrary units and signs) and of the model shape (whose amplitude at the
@@ -87,7 +88,8 @@ struct PairedMode {
   double mac = -1;              ///< MAC at the sensors, -1 without a measured shape
 };
 
-enum class Need { Value, Gradient, Jacobian };
+/// What an evaluation computes; each includes the ones before it.
+enum class Need { Value, Gradient, Jacobian, Hessian };
 
 struct Evaluation {
   bool ok = false;
@@ -99,6 +101,10 @@ struct Evaluation {
   /// sqrt(kappa_i) e_i for each mode with a shape.
   Vector residuals;
   Matrix jacobian;                   ///< d residuals / dp, with Need::Jacobian
+  /// d^2 J / dp^2, exact (second-order terms included), with Need::Hessian. See objective.cpp for
+  /// the formulas: eigenvector sensitivities for every paired mode, and the adjoint w_0 in place
+  /// of second eigenvector derivatives.
+  Matrix hessian;
   std::vector<PairedMode> pairs;
   std::vector<std::string> warnings; ///< e.g. nearly repeated eigenvalues, pairing changed
   ModalResult modal;
@@ -127,6 +133,8 @@ class Objective {
 
  private:
   struct Workspace;
+  void add_mode_hessian(const Vector& p, int i, double lambda, const Vector& u, const Matrix& X, const Matrix& dU,
+                        const Vector& dlambda, const Vector& m, const Vector& Ju, const Vector& w0, Matrix* H) const;
   const Problem& problem_;
   ObjectiveOptions options_;
   ParameterScaling regularization_scaling_;

@@ -42,8 +42,7 @@ int run_calibrate(const CalibrateArgs& args) {
   objective_options.regularization = args.regularization;
   Objective objective(problem, objective_options);
   ReducedOptions options;
-  options.method = args.method == "reduced-gauss-newton" ? ReducedOptions::Method::GaussNewton
-                                                         : ReducedOptions::Method::Lbfgs;
+  options.method = parse_method(args.method);
   options.max_iterations = args.max_iterations;
   options.use_bounds = !args.no_bounds;
   if (!args.scaling.empty()) options.scaling = parse_scaling(args.scaling);
@@ -75,8 +74,8 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the parameters against the measured modes");
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--method", args->method, "reduced-lbfgs (default) or reduced-gauss-newton")
-      ->check(CLI::IsMember({"reduced-lbfgs", "reduced-gauss-newton"}));
+  cmd->add_option("--method", args->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
+      ->check(CLI::IsMember(method_names()));
   cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
       ->check(CLI::IsMember({"none", "linear", "log"}));
   cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");

@@ -16,7 +16,7 @@ namespace {
 struct CheckArgs {
   std::string problem;
   ParameterChoice params;
-  double step = 1e-6;
+  double step = 1e-5;
   double tolerance = 1e-4;
   double refine = 0;
 };
@@ -43,7 +43,7 @@ void register_check_command(CLI::App& app, int* exit_code) {
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--params", args->params.source, "where to check: initial, truth, or a report JSON");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE (repeatable)");
-  cmd->add_option("--step", args->step, "relative finite-difference step (default 1e-6)")->check(CLI::PositiveNumber);
+  cmd->add_option("--step", args->step, "relative finite-difference step (default 1e-5)")->check(CLI::PositiveNumber);
   cmd->add_option("--tolerance", args->tolerance, "largest acceptable relative error (default 1e-4)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);

@@ -88,6 +88,15 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
   return p;
 }
 
+std::vector<std::string> method_names() { return {"reduced-lbfgs", "reduced-gauss-newton", "reduced-newton"}; }
+
+ReducedOptions::Method parse_method(const std::string& name) {
+  if (name == "reduced-lbfgs") return ReducedOptions::Method::Lbfgs;
+  if (name == "reduced-gauss-newton") return ReducedOptions::Method::GaussNewton;
+  if (name == "reduced-newton") return ReducedOptions::Method::Newton;
+  throw InputError("--method " + name + ": expected one of reduced-lbfgs, reduced-gauss-newton, reduced-newton");
+}
+
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
   if (path.empty()) return;
   write_file_atomically(path, json.dump(2) + "\n", {problem.path});

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "modalcal/problem.hpp"
+#include "modalcal/reduced.hpp"
 
 namespace modalcal::cli {
 
@@ -24,6 +25,10 @@ struct ParameterChoice {
 /// Parameter values chosen by `choice`; property assignments (names that are not parameters)
 /// are applied to problem->model.
 Vector choose_parameters(Problem* problem, const ParameterChoice& choice);
+
+/// The reduced-space methods by their CLI names, and the reverse.
+std::vector<std::string> method_names();
+ReducedOptions::Method parse_method(const std::string& name);
 
 /// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);

@@ -118,8 +118,7 @@ int run_starts(const StudyArgs& args) {
   for (double factor : args.factors) {
     Objective objective(problem);
     ReducedOptions options;
-    options.method = args.method == "reduced-gauss-newton" ? ReducedOptions::Method::GaussNewton
-                                                           : ReducedOptions::Method::Lbfgs;
+    options.method = parse_method(args.method);
     options.max_iterations = 200;
     const Vector start = (problem.initial_values() * factor).cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
     const ReducedSummary s = minimize_reduced(objective, start, options);
@@ -182,8 +181,8 @@ void register_study_command(CLI::App& app, int* exit_code) {
   CLI::App* st = study->add_subcommand("starts", "Calibrate from several starts; parameter spread and identifiability");
   common(st, starts.get());
   st->add_option("--factors", starts->factors, "start = initial x factor, for each factor (default 0.1 10)");
-  st->add_option("--method", starts->method, "reduced-lbfgs (default) or reduced-gauss-newton")
-      ->check(CLI::IsMember({"reduced-lbfgs", "reduced-gauss-newton"}));
+  st->add_option("--method", starts->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
+      ->check(CLI::IsMember(method_names()));
   st->callback([starts, exit_code] { *exit_code = run_starts(*starts); });
 }
 

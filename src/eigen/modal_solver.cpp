@@ -2,11 +2,14 @@
 #include <Eigen/Eigenvalues>
 #include <Spectra/SymGEigsShiftSolver.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
+#include "eigen/block_lanczos.hpp"
 #include "eigen/cholmod_factor.hpp"
 #include "modalcal/eigen.hpp"
 
@@ -23,30 +26,24 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Spectra operator concept for (K - sigma M)^{-1} over the CHOLMOD factor: the factorization
-// itself happens in set_shift(), which Spectra calls once from the solver's constructor.
+// Spectra operator concept for (K - sigma M)^{-1} over a CHOLMOD factor that already holds
+// K - sigma M: the block path and this fallback share one factorization, so set_shift(), which
+// Spectra calls once from the solver's constructor with that same sigma, has nothing to do.
 class ShiftInvertOperator {
  public:
   using Scalar = double;
-  ShiftInvertOperator(detail::CholmodFactor& factor, const SparseMatrix& K, const SparseMatrix& M)
-      : factor_(factor), K_(K), M_(M) {}
+  explicit ShiftInvertOperator(const detail::CholmodFactor& factor) : factor_(factor) {}
   Eigen::Index rows() const { return factor_.rows(); }
   Eigen::Index cols() const { return factor_.rows(); }
-  void set_shift(double sigma) { ok_ = factor_.factorize(K_, M_, sigma, &failed_column_); }
+  void set_shift(double) {}
   void perform_op(const double* x, double* y) const {
     factor_.solve(x, y);
     ++solves_;
   }
-  bool ok() const { return ok_; }
-  int failed_column() const { return failed_column_; }
   int solves() const { return solves_; }
 
  private:
-  detail::CholmodFactor& factor_;
-  const SparseMatrix& K_;
-  const SparseMatrix& M_;
-  bool ok_ = false;
-  int failed_column_ = -1;
+  const detail::CholmodFactor& factor_;
   mutable int solves_ = 0;
 };
 
@@ -71,6 +68,173 @@ std::string not_positive_definite_message(double sigma, int column) {
     << "modulus, stiffness or mass (check parameter values and bounds), or a Poisson's ratio "
     << "at or beyond 0.5.";
   return s.str();
+}
+
+// Eigenpairs of (K, M), ascending, before the rigid/elastic split.
+struct Eigenpairs {
+  Vector lambda;
+  Matrix vectors;
+};
+
+// Dense shift-invert: with A = K - sigma M = L L^T, the eigenvalues of L^{-1} M L^{-T} are
+// 1/(lambda - sigma); this tolerates a singular M (massless rotations).
+bool dense_eigenpairs(const SparseMatrix& K, const SparseMatrix& M, double sigma, int wanted, ModalResult* result,
+                      Eigenpairs* pairs) {
+  const int n = static_cast<int>(K.rows());
+  const Matrix A = Matrix(K) - sigma * Matrix(M);
+  Eigen::LLT<Matrix> llt(A);
+  ++result->factorizations;
+  if (llt.info() != Eigen::Success) {
+    result->message = not_positive_definite_message(sigma, -1);
+    return false;
+  }
+  Matrix C = llt.matrixL().solve(Matrix(M));
+  C = llt.matrixL().solve(C.transpose()).transpose();
+  Eigen::SelfAdjointEigenSolver<Matrix> es(C);
+  pairs->lambda.resize(wanted);
+  pairs->vectors.resize(n, wanted);
+  for (int k = 0; k < wanted; ++k) {
+    const int idx = n - 1 - k;  // largest 1/(lambda - sigma) first = lowest lambda
+    pairs->lambda[k] = 1.0 / es.eigenvalues()[idx] + sigma;
+    pairs->vectors.col(k) = llt.matrixU().solve(es.eigenvectors().col(idx));
+  }
+  return true;
+}
+
+// Block size when ModalOptions::block_size is 0 (see its documentation for the measurements).
+constexpr int kAutomaticBlockSize = 4;
+
+detail::BlockLanczosOptions block_options(const ModalOptions& options, int wanted, double rigid_threshold) {
+  detail::BlockLanczosOptions block;
+  block.nev = wanted;
+  block.block_size = options.block_size > 0 ? options.block_size : kAutomaticBlockSize;
+  // The automatic size holds the 13-14 blocks that 10 modes took and the 23 that 20 took on
+  // the LFU model (7e4-1.5e5 DOFs) without a restart.
+  const int basis = options.subspace_size > 0 ? options.subspace_size : std::max(6 * wanted, wanted + 12 * block.block_size);
+  // Room for the kept Ritz vectors plus two blocks after a thick restart.
+  block.max_basis = std::max(basis, wanted + 2 * block.block_size);
+  block.max_restarts = options.max_iterations;
+  block.tolerance = options.tolerance;
+  block.rigid_threshold = rigid_threshold;
+  return block;
+}
+
+// Single-vector shift-invert Lanczos (Spectra) on the factorization of K - sigma M.
+bool spectra_eigenpairs(const detail::CholmodFactor& factor, const SparseMatrix& M, double sigma, int wanted,
+                        const ModalOptions& options, ModalResult* result, Eigenpairs* pairs) {
+  const int n = factor.rows();
+  ShiftInvertOperator op(factor);
+  MassOperator bop(M);
+  const int ncv = options.subspace_size > 0 ? options.subspace_size : std::min(n, 2 * wanted + 1);
+  Spectra::SymGEigsShiftSolver<ShiftInvertOperator, MassOperator, Spectra::GEigsMode::ShiftInvert> eigs(
+      op, bop, wanted, ncv, sigma);
+  eigs.init();
+  eigs.compute(Spectra::SortRule::LargestMagn, options.max_iterations, options.tolerance,
+               Spectra::SortRule::SmallestAlge);
+  result->operator_solves += op.solves();
+  if (eigs.info() != Spectra::CompInfo::Successful) {
+    result->status = eigs.info() == Spectra::CompInfo::NotConverging ? EigenStatus::NotConverging
+                                                                      : EigenStatus::NumericalIssue;
+    result->message = "shift-invert Lanczos did not converge in " + std::to_string(options.max_iterations) +
+                      " restarts (tolerance " + std::to_string(options.tolerance) +
+                      "): try a larger subspace_size or a looser tolerance";
+    return false;
+  }
+  pairs->lambda = eigs.eigenvalues();
+  pairs->vectors = eigs.eigenvectors();
+  return true;
+}
+
+// One factorization of K - sigma M, then block Lanczos, or Spectra if it is asked for
+// (block_size = 1) or the block iteration does not converge.
+bool sparse_eigenpairs(detail::CholmodFactor& factor, const SparseMatrix& K, const SparseMatrix& M, double sigma,
+                       int wanted, double rigid_threshold, const ModalOptions& options, ModalResult* result,
+                       Eigenpairs* pairs) {
+  const auto tf = std::chrono::steady_clock::now();
+  int column = -1;
+  const bool factorized = factor.factorize(K, M, sigma, &column);
+  result->seconds_factorize = seconds_since(tf);
+  ++result->factorizations;
+  if (!factorized) {
+    result->message = not_positive_definite_message(sigma, column);
+    return false;
+  }
+  if (options.block_size != 1) {
+    const detail::BlockLanczosOptions block_opts = block_options(options, wanted, rigid_threshold);
+    const detail::BlockLanczosResult block = detail::block_lanczos(factor, K, M, sigma, block_opts);
+    result->operator_solves += block.solves;
+    if (block.converged) {
+      result->block_size = block_opts.block_size;
+      pairs->lambda = block.eigenvalues;
+      pairs->vectors = block.vectors;
+      return true;
+    }
+  }
+  result->block_size = 1;
+  return spectra_eigenpairs(factor, M, sigma, wanted, options, result, pairs);
+}
+
+// Splits rigid-body (near-zero) from elastic modes, normalizes (u^T M u = 1), fixes signs
+// (largest component positive) and computes the residuals; false with a message if K is
+// indefinite or singular or too few elastic modes were found.
+bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs& pairs, double rigid_threshold,
+                 const ModalOptions& options, ModalResult* result) {
+  const Vector& lambda = pairs.lambda;
+  std::vector<int> rigid, elastic;
+  for (int k = 0; k < lambda.size(); ++k) {
+    if (lambda[k] < -rigid_threshold) {
+      std::ostringstream s;
+      s << "K has a negative eigenvalue (" << lambda[k] << ", " << frequency_hz(lambda[k])
+        << " Hz): K is indefinite. Likely causes: a negative modulus, stiffness or mass.";
+      result->message = s.str();
+      return false;
+    }
+    (std::abs(lambda[k]) <= rigid_threshold ? rigid : elastic).push_back(k);
+  }
+  if (static_cast<int>(rigid.size()) > options.max_rigid_modes) {
+    result->message = std::to_string(rigid.size()) + " zero-frequency modes but at most " +
+                      std::to_string(options.max_rigid_modes) +
+                      " expected: K is singular. Likely causes: supports are missing, a part is not "
+                      "connected to the rest, or a joint or spring stiffness is zero.";
+    return false;
+  }
+  // All products with M and K in one pass over each matrix.
+  Matrix U = pairs.vectors;
+  Matrix MU = detail::symmetric_times(M, U);
+  for (int k = 0; k < U.cols(); ++k) {
+    const double scale = 1.0 / std::sqrt(U.col(k).dot(MU.col(k)));
+    Eigen::Index imax;
+    U.col(k).cwiseAbs().maxCoeff(&imax);
+    const double sign = U(imax, k) < 0 ? -scale : scale;
+    U.col(k) *= sign;
+    MU.col(k) *= sign;
+  }
+  const int ne = std::min(options.num_modes, static_cast<int>(elastic.size()));
+  result->eigenvalues.resize(ne);
+  result->modes.resize(U.rows(), ne);
+  result->residuals.resize(ne);
+  for (int k = 0; k < ne; ++k) {
+    result->eigenvalues[k] = lambda[elastic[k]];
+    result->modes.col(k) = U.col(elastic[k]);
+  }
+  const Matrix KU = detail::symmetric_times(K, result->modes);
+  for (int k = 0; k < ne; ++k) {
+    const double l = result->eigenvalues[k];
+    const auto Mu = MU.col(elastic[k]);
+    result->residuals[k] = (KU.col(k) - l * Mu).norm() / (std::abs(l) * Mu.norm());
+  }
+  result->rigid_eigenvalues.resize(rigid.size());
+  result->rigid_modes.resize(U.rows(), rigid.size());
+  for (size_t k = 0; k < rigid.size(); ++k) {
+    result->rigid_eigenvalues[k] = lambda[rigid[k]];
+    result->rigid_modes.col(k) = U.col(rigid[k]);
+  }
+  if (ne < options.num_modes) {
+    result->status = EigenStatus::NumericalIssue;
+    result->message = "found only " + std::to_string(ne) + " elastic modes of " + std::to_string(options.num_modes);
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -106,6 +270,8 @@ bool ModalOptions::IsValid(std::string* error) const {
     return bad("initial_shift = " + std::to_string(initial_shift) + ": must be 0 (automatic) or negative");
   if (!(rigid_tolerance > 0 && rigid_tolerance <= 1e-3))
     return bad("rigid_tolerance = " + std::to_string(rigid_tolerance) + ": must be in (0, 1e-3]");
+  if (block_size < 0 || block_size > 64)
+    return bad("block_size = " + std::to_string(block_size) + ": must be in 0..64");
   return true;
 }
 
@@ -146,8 +312,11 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
   const int n = static_cast<int>(K.rows());
   const double trace_ratio = K.diagonal().sum() / M.diagonal().sum();
   if (!std::isfinite(trace_ratio) || !(trace_ratio > 0)) {
-    result.message = "K or M has a non-positive or non-finite trace: check moduli, densities and "
-                     "parameter values for zeros, negatives or NaN";
+    result.message = K.diagonal().sum() <= 0
+                         ? "K has a non-positive trace, so K is indefinite: a negative modulus or stiffness "
+                           "(check parameter values and bounds)"
+                         : "K or M has a non-positive or non-finite trace: check moduli, densities and "
+                           "parameter values for zeros, negatives or NaN";
     return result;
   }
   // Without a previous solve, -1e-6 tr(K)/tr(M) lies near or below the lowest elastic eigenvalue
@@ -161,116 +330,18 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
                      std::to_string(n) + " DOFs";
     return result;
   }
-
-  Vector lambda;
-  Matrix vectors;
-  if (n <= kDenseLimit) {
-    // Dense shift-invert: with A = K - sigma M = L L^T, the eigenvalues of L^{-1} M L^{-T} are
-    // 1/(lambda - sigma); this tolerates a singular M (massless rotations).
-    const Matrix A = Matrix(K) - sigma * Matrix(M);
-    Eigen::LLT<Matrix> llt(A);
-    ++result.factorizations;
-    if (llt.info() != Eigen::Success) {
-      result.message = not_positive_definite_message(sigma, -1);
-      result.seconds_total = seconds_since(t0);
-      return result;
-    }
-    Matrix C = llt.matrixL().solve(Matrix(M));
-    C = llt.matrixL().solve(C.transpose()).transpose();
-    Eigen::SelfAdjointEigenSolver<Matrix> es(C);
-    const int count = wanted;
-    lambda.resize(count);
-    vectors.resize(n, count);
-    for (int k = 0; k < count; ++k) {
-      const int idx = n - 1 - k;  // largest 1/(lambda - sigma) first = lowest lambda
-      lambda[k] = 1.0 / es.eigenvalues()[idx] + sigma;
-      vectors.col(k) = llt.matrixU().solve(es.eigenvectors().col(idx));
-    }
-  } else {
-    ShiftInvertOperator op(impl_->factor, K, M);
-    MassOperator bop(M);
-    const int ncv = options_.subspace_size > 0 ? options_.subspace_size : std::min(n, 2 * wanted + 1);
-    const auto tf = std::chrono::steady_clock::now();
-    Spectra::SymGEigsShiftSolver<ShiftInvertOperator, MassOperator, Spectra::GEigsMode::ShiftInvert> eigs(
-        op, bop, wanted, ncv, sigma);
-    result.seconds_factorize = seconds_since(tf);
-    ++result.factorizations;
-    if (!op.ok()) {
-      result.message = not_positive_definite_message(sigma, op.failed_column());
-      result.seconds_total = seconds_since(t0);
-      return result;
-    }
-    eigs.init();
-    eigs.compute(Spectra::SortRule::LargestMagn, options_.max_iterations, options_.tolerance,
-                 Spectra::SortRule::SmallestAlge);
-    result.operator_solves = op.solves();
-    if (eigs.info() != Spectra::CompInfo::Successful) {
-      result.status = eigs.info() == Spectra::CompInfo::NotConverging ? EigenStatus::NotConverging
-                                                                       : EigenStatus::NumericalIssue;
-      result.message = "shift-invert Lanczos did not converge in " + std::to_string(options_.max_iterations) +
-                       " restarts (tolerance " + std::to_string(options_.tolerance) +
-                       "): try a larger subspace_size or a looser tolerance";
-      result.seconds_total = seconds_since(t0);
-      return result;
-    }
-    lambda = eigs.eigenvalues();
-    vectors = eigs.eigenvectors();
-  }
-
-  // Split rigid-body (near-zero) from elastic modes, normalize and fix signs.
   const double rigid_threshold = options_.rigid_tolerance * trace_ratio;
-  std::vector<int> rigid, elastic;
-  for (int k = 0; k < lambda.size(); ++k) {
-    if (lambda[k] < -rigid_threshold) {
-      std::ostringstream s;
-      s << "K has a negative eigenvalue (" << lambda[k] << ", " << frequency_hz(lambda[k])
-        << " Hz): K is indefinite. Likely causes: a negative modulus, stiffness or mass.";
-      result.message = s.str();
-      result.seconds_total = seconds_since(t0);
-      return result;
-    }
-    (std::abs(lambda[k]) <= rigid_threshold ? rigid : elastic).push_back(k);
+  Eigenpairs pairs;
+  // The dense path also factorizes K - sigma M with CHOLMOD: adjoint and sensitivity solves
+  // (solve_factorized) use that factorization whichever path found the modes.
+  const bool found =
+      n <= kDenseLimit
+          ? dense_eigenpairs(K, M, sigma, wanted, &result, &pairs) && impl_->factor.factorize(K, M, sigma, nullptr)
+          : sparse_eigenpairs(impl_->factor, K, M, sigma, wanted, rigid_threshold, options_, &result, &pairs);
+  if (found && split_modes(K, M, pairs, rigid_threshold, options_, &result)) {
+    result.status = EigenStatus::Successful;
+    shift_ = -0.3 * result.eigenvalues[0];
   }
-  if (static_cast<int>(rigid.size()) > options_.max_rigid_modes) {
-    result.message = std::to_string(rigid.size()) + " zero-frequency modes but at most " +
-                     std::to_string(options_.max_rigid_modes) +
-                     " expected: K is singular. Likely causes: supports are missing, a part is not "
-                     "connected to the rest, or a joint or spring stiffness is zero.";
-    result.seconds_total = seconds_since(t0);
-    return result;
-  }
-  auto normalize = [&](Vector u) {
-    u /= std::sqrt(u.dot(M * u));
-    Eigen::Index imax;
-    u.cwiseAbs().maxCoeff(&imax);
-    if (u[imax] < 0) u = -u;
-    return u;
-  };
-  const int ne = std::min(options_.num_modes, static_cast<int>(elastic.size()));
-  result.eigenvalues.resize(ne);
-  result.modes.resize(n, ne);
-  result.residuals.resize(ne);
-  for (int k = 0; k < ne; ++k) {
-    const Vector u = normalize(vectors.col(elastic[k]));
-    result.eigenvalues[k] = lambda[elastic[k]];
-    result.modes.col(k) = u;
-    const Vector Mu = M * u;
-    result.residuals[k] = (K * u - lambda[elastic[k]] * Mu).norm() / (std::abs(lambda[elastic[k]]) * Mu.norm());
-  }
-  result.rigid_eigenvalues.resize(rigid.size());
-  result.rigid_modes.resize(n, rigid.size());
-  for (size_t k = 0; k < rigid.size(); ++k) {
-    result.rigid_eigenvalues[k] = lambda[rigid[k]];
-    result.rigid_modes.col(k) = normalize(vectors.col(rigid[k]));
-  }
-  if (ne < options_.num_modes) {
-    result.status = EigenStatus::NumericalIssue;
-    result.message = "found only " + std::to_string(ne) + " elastic modes of " + std::to_string(options_.num_modes);
-    result.seconds_total = seconds_since(t0);
-    return result;
-  }
-  result.status = EigenStatus::Successful;
-  shift_ = -0.3 * result.eigenvalues[0];
   result.seconds_total = seconds_since(t0);
   return result;
 }

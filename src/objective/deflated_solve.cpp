@@ -29,10 +29,12 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
 
   auto project = [&](Matrix& Z) { Z -= U * (MU.transpose() * Z); };  // Z <- (I - U U^T M) Z
   auto apply = [&](const Matrix& P) -> Matrix { return K * P - (M * P) * shift.asDiagonal(); };
+  // Converged relative to the whole right-hand side: when the computed modes carry all of it, the
+  // remainder is round-off and needs no iteration.
   Vector target(m);
-  for (int c = 0; c < m; ++c) target[c] = tolerance * std::max(R.col(c).norm(), 1e-300);
+  for (int c = 0; c < m; ++c) target[c] = tolerance * std::max(B.col(c).norm(), 1e-300);
   std::vector<bool> active(m);
-  for (int c = 0; c < m; ++c) active[c] = R.col(c).norm() > 0;
+  for (int c = 0; c < m; ++c) active[c] = R.col(c).norm() > target[c];
 
   Matrix Z = precondition(R);
   out.column_solves += m;

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "modalcal/mode_description.hpp"
+#include "objective/assignment.hpp"
 #include "objective/deflated_solve.hpp"
 
 namespace modalcal {
@@ -89,7 +90,9 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
     if (m.pairing.kind == PairingRule::Kind::ModelIndex) highest = std::max(highest, m.pairing.model_index);
     num_residuals_ += 1 + static_cast<int>(m.shape.size());
   }
-  workspace_->modes_needed = highest + options_.extra_modes;
+  // Extra modes only as far as a small model has them.
+  workspace_->modes_needed =
+      std::max(highest, std::min(highest + options_.extra_modes, system_->num_dofs() - problem.expected_rigid_modes()));
   ModalOptions modal;
   modal.num_modes = workspace_->modes_needed;
   modal.max_rigid_modes = problem.expected_rigid_modes();
@@ -98,6 +101,67 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
 }
 
 Objective::~Objective() = default;
+
+// Exact Hessian contribution of measured mode i (paired with eigenvalue lambda, mode u).
+// Eigenvalue term 1/2 beta r^2, r = (lambda - lambda_m)/lambda_m:
+//   H += beta/lambda_m^2 grad(lambda) grad(lambda)^T + beta r/lambda_m d2lambda,
+//   d2lambda_jk = -2 x_k^T (K - lambda M) x_j - lambda_j m_k - lambda_k m_j + u^T (K_jk - lambda M_jk) u,
+// with m_j = u^T M_j u (differentiate lambda_j = u^T (K_j - lambda M_j) u once more).
+// Shape term g(y) = kappa/2 (1 - MAC(y, phi)), y = P u:
+//   H += y_j^T grad2 g y_k + J_u^T u_jk, and J_u^T u_jk = w0^T Q'_jk + c_jk u^T J_u, where
+//   Q'_jk = (K_j - lambda_j M - lambda M_j) u_k + (j <-> k) + (K_jk - lambda_j M_k - lambda_k M_j - lambda M_jk) u
+//   c_jk = u^T M u_jk = -(u_j^T M u_k + u_j^T M_k u + u_k^T M_j u + u^T M_jk u / 2)
+// from the twice-differentiated eigenproblem and normalization: the adjoint w0 stands in for
+// the second eigenvector derivatives, so no further solve is needed.
+void Objective::add_mode_hessian(const Vector& p, int i, double lambda, const Vector& u, const Matrix& X,
+                                 const Matrix& dU, const Vector& dlambda, const Vector& m, const Vector& Ju,
+                                 const Vector& w0, Matrix* H) const {
+  const MeasuredMode& measured = problem_.measured[i];
+  const SparseMatrix& K = workspace_->K;
+  const SparseMatrix& M = workspace_->M;
+  const int np = num_parameters();
+  Matrix A2, B2;
+  system_->second_derivative_forms(p, u, u, &A2, &B2);
+  if (measured.weight > 0) {
+    const double target = eigenvalue_of_hz(measured.frequency_hz);
+    const double r = (lambda - target) / target;
+    const Matrix KX = K * X - lambda * (M * X);
+    Matrix d2lambda = -2 * X.transpose() * KX + A2 - lambda * B2;
+    d2lambda -= dlambda * m.transpose() + m * dlambda.transpose();
+    *H += measured.weight / (target * target) * dlambda * dlambda.transpose() +
+          measured.weight * r / target * 0.5 * (d2lambda + d2lambda.transpose());
+  }
+  if (Ju.size() == 0) return;
+  // Hessian of kappa/2 (1 - (phi^T y)^2 / y^T y) in y, phi unit (the 1/2 cancels the 2 of a^2).
+  const Vector phi = measured.shape.normalized();
+  const Vector y = workspace_->sensors * u;
+  const double a = phi.dot(y), s = y.squaredNorm();
+  Matrix Hy = -phi * phi.transpose() / s + 2 * a * (phi * y.transpose() + y * phi.transpose()) / (s * s) +
+              (a * a / (s * s)) * Matrix::Identity(y.size(), y.size()) - 4 * a * a * y * y.transpose() / (s * s * s);
+  Hy *= measured.shape_weight;
+  const Matrix Y = workspace_->sensors * dU;
+  *H += Y.transpose() * Hy * Y;
+  // w0^T Q'_jk.
+  Vector aw, bw;
+  system_->derivative_forms(p, w0, u, &aw, &bw);
+  Matrix A0, B0;
+  system_->second_derivative_forms(p, w0, u, &A0, &B0);
+  const Vector wMdu = dU.transpose() * (M * w0);
+  Matrix WQ = A0 - lambda * B0 - dlambda * bw.transpose() - bw * dlambda.transpose();
+  Matrix Bu(np, np);  // Bu(j, k) = u_j^T M_k u
+  for (int k = 0; k < np; ++k) {
+    Vector ak, bk;
+    system_->derivative_forms(p, w0, dU.col(k), &ak, &bk);  // w0^T K_j u_k, w0^T M_j u_k
+    const Vector column = ak - dlambda * wMdu[k] - lambda * bk;
+    WQ.col(k) += column;
+    WQ.row(k) += column.transpose();
+    Vector au, bu;
+    system_->derivative_forms(p, dU.col(k), u, &au, &bu);
+    Bu.row(k) = bu.transpose();
+  }
+  const Matrix c = -(dU.transpose() * M * dU + Bu + Bu.transpose() + 0.5 * B2);
+  *H += 0.5 * (WQ + WQ.transpose()) + c * u.dot(Ju);
+}
 
 Evaluation Objective::evaluate(const Vector& p, Need need) {
   Evaluation e;
@@ -117,7 +181,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   const Vector& lambda = e.modal.eigenvalues;
   const int num_model = static_cast<int>(lambda.size());
 
-  // --- Pairing: fixed rules first, then MAC greedily (largest MAC first, one-to-one).
+  // --- Pairing: fixed rules first, then by MAC (largest total MAC, one-to-one).
   const int num_measured = static_cast<int>(problem_.measured.size());
   std::vector<int> model_of(num_measured, -1);
   std::vector<bool> taken(num_model, false);
@@ -153,21 +217,18 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     if (m.shape.size() == 0) continue;
     for (int k = 0; k < num_model; ++k) mac_table(i, k) = mac(ws.sensors * U.col(k), m.shape);
   }
-  while (true) {
-    int best_i = -1, best_k = -1;
-    double best = -1;
-    for (int i = 0; i < num_measured; ++i) {
-      if (model_of[i] >= 0 || problem_.measured[i].pairing.kind != PairingRule::Kind::Mac) continue;
-      for (int k = 0; k < num_model; ++k)
-        if (!taken[k] && mac_table(i, k) > best) {
-          best = mac_table(i, k);
-          best_i = i;
-          best_k = k;
-        }
-    }
-    if (best_i < 0) break;
-    model_of[best_i] = best_k;
-    taken[best_k] = true;
+  // MAC-paired modes: the assignment with the largest total MAC among the modes left free.
+  std::vector<int> mac_rows, free_columns;
+  for (int i = 0; i < num_measured; ++i)
+    if (model_of[i] < 0 && problem_.measured[i].pairing.kind == PairingRule::Kind::Mac) mac_rows.push_back(i);
+  for (int k = 0; k < num_model; ++k)
+    if (!taken[k]) free_columns.push_back(k);
+  if (!mac_rows.empty() && mac_rows.size() <= free_columns.size()) {
+    Matrix score(mac_rows.size(), free_columns.size());
+    for (size_t a = 0; a < mac_rows.size(); ++a)
+      for (size_t b = 0; b < free_columns.size(); ++b) score(a, b) = mac_table(mac_rows[a], free_columns[b]);
+    const std::vector<int> assigned = detail::maximize_assignment(score);
+    for (size_t a = 0; a < mac_rows.size(); ++a) model_of[mac_rows[a]] = free_columns[assigned[a]];
   }
   for (int i = 0; i < num_measured; ++i)
     if (model_of[i] < 0) {
@@ -218,7 +279,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   // --- Gradient (adjoint) and, on request, the residual Jacobian (direct sensitivities).
   const int np = num_parameters();
   e.gradient = options_.regularization * (x - x0).cwiseQuotient(regularization_scaling_.first_derivative(x));
-  if (need == Need::Jacobian) e.jacobian = Matrix::Zero(num_residuals_, np);
+  if (need >= Need::Jacobian) e.jacobian = Matrix::Zero(num_residuals_, np);
 
   detail::DeflationBasis basis;
   const int nr = static_cast<int>(e.modal.rigid_eigenvalues.size());
@@ -240,11 +301,12 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     const MeasuredMode& m = problem_.measured[i];
     const double target = eigenvalue_of_hz(m.frequency_hz);
     e.gradient += m.weight * e.pairs[i].relative_error / target * dlambda[i];
-    if (need == Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) / target * dlambda[i].transpose();
+    if (need >= Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) / target * dlambda[i].transpose();
   }
 
   // Shape terms: adjoint right-hand sides (M u u^T - I) J_u, one column per measured shape.
   std::vector<int> shape_modes, own;
+  std::vector<Vector> shape_gradient(num_measured);  // J_u of each measured mode's shape term
   Matrix rhs(U.rows(), 0);
   for (int i = 0; i < num_measured; ++i) {
     const MeasuredMode& m = problem_.measured[i];
@@ -259,6 +321,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     const Vector Pe = res - phi * phi.dot(res);
     const Vector Jy = m.shape_weight * (Pe - yhat * yhat.dot(Pe)) / norm;
     const Vector Ju = ws.sensors.transpose() * Jy;
+    shape_gradient[i] = Ju;
     rhs.conservativeResize(Eigen::NoChange, rhs.cols() + 1);
     rhs.col(rhs.cols() - 1) = ws.M * u * u.dot(Ju) - Ju;
     shape_modes.push_back(i);
@@ -266,6 +329,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     // eta_i u^T M_j u with eta_i = -u^T J_u / 2.
     e.gradient += -0.5 * u.dot(Ju) * umu[i];
   }
+  Matrix adjoint_solution(U.rows(), 0);
   if (!shape_modes.empty()) {
     const detail::DeflatedSolveResult adjoint =
         detail::solve_deflated(ws.K, ws.M, basis, own, rhs, precondition, options_.linear_tolerance,
@@ -282,54 +346,73 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       system_->derivative_forms(p, adjoint.solution.col(s), U.col(k), &a, &b);
       e.gradient += a - lambda[k] * b;
     }
+    adjoint_solution = adjoint.solution;
   }
 
-  if (need == Need::Jacobian) {
-    // du/dp_j = x_j - (u^T M_j u / 2) u, (K - lambda M) x_j = -(K_j - lambda M_j) u + dlambda_j M u.
-    Matrix sensitivity_rhs(U.rows(), 0);
+  if (need >= Need::Jacobian) {
+    // Eigenvector sensitivities du/dp_j = x_j - (u^T M_j u / 2) u with
+    // (K - lambda M) x_j = -(K_j - lambda M_j) u + dlambda_j M u, x_j M-orthogonal to u:
+    // for the shape rows of the Jacobian, and for every paired mode when the Hessian is wanted.
+    std::vector<int> modes_needed;
+    for (int i = 0; i < num_measured; ++i)
+      if (need == Need::Hessian || (problem_.measured[i].shape.size() && problem_.measured[i].shape_weight > 0))
+        modes_needed.push_back(i);
+    Matrix sensitivity_rhs(U.rows(), static_cast<Eigen::Index>(modes_needed.size()) * np);
     std::vector<int> own_columns;
-    std::vector<int> column_mode;
-    for (int i : shape_modes) {
+    for (size_t a = 0; a < modes_needed.size(); ++a) {
+      const int i = modes_needed[a];
       const int k = model_of[i];
-      const Vector u = U.col(k);
-      const Vector Mu = ws.M * u;
+      const Vector Mu = ws.M * U.col(k);
       for (int j = 0; j < np; ++j) {
         Vector dKu, dMu;
-        system_->derivative_times(p, j, u, &dKu, &dMu);
-        sensitivity_rhs.conservativeResize(Eigen::NoChange, sensitivity_rhs.cols() + 1);
-        sensitivity_rhs.col(sensitivity_rhs.cols() - 1) = -(dKu - lambda[k] * dMu) + dlambda[i][j] * Mu;
+        system_->derivative_times(p, j, U.col(k), &dKu, &dMu);
+        sensitivity_rhs.col(a * np + j) = -(dKu - lambda[k] * dMu) + dlambda[i][j] * Mu;
         own_columns.push_back(nr + k);
-        column_mode.push_back(i);
       }
     }
-    if (!own_columns.empty()) {
-      const detail::DeflatedSolveResult direct =
-          detail::solve_deflated(ws.K, ws.M, basis, own_columns, sensitivity_rhs, precondition,
-                                 options_.linear_tolerance, options_.max_linear_iterations);
-      e.linear_solves += direct.column_solves;
-      if (!direct.converged) {
-        e.ok = false;
-        e.message = "sensitivity solve: " + direct.message;
-        return e;
+    const detail::DeflatedSolveResult direct =
+        detail::solve_deflated(ws.K, ws.M, basis, own_columns, sensitivity_rhs, precondition,
+                               options_.linear_tolerance, options_.max_linear_iterations);
+    e.linear_solves += direct.column_solves;
+    if (!direct.converged) {
+      e.ok = false;
+      e.message = "sensitivity solve: " + direct.message;
+      return e;
+    }
+    std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
+    for (int i = 0, r = num_measured; i < num_measured; ++i)
+      if (problem_.measured[i].shape.size()) {
+        first_row[i] = r;
+        r += ns;
       }
-      // Shape rows start after the eigenvalue rows, in measured order.
-      std::vector<int> first_row(num_measured, -1);
-      int r = num_measured;
-      for (int i = 0; i < num_measured; ++i)
-        if (problem_.measured[i].shape.size()) {
-          first_row[i] = r;
-          r += ns;
-        }
-      for (size_t c = 0; c < own_columns.size(); ++c) {
-        const int i = column_mode[c];
-        const int j = static_cast<int>(c % np);
-        const MeasuredMode& m = problem_.measured[i];
-        const Vector u = U.col(model_of[i]);
-        const Vector du = direct.solution.col(c) - 0.5 * umu[i][j] * u;
+    if (need == Need::Hessian) {
+      e.hessian = Matrix::Zero(np, np);
+      // Regularization: R = alpha/2 |x_r(p) - x_r0|^2, dx/dp = 1/p'(x), d2x/dp2 = -p''(x)/p'(x)^3.
+      const Vector dp = regularization_scaling_.first_derivative(x), d2p = regularization_scaling_.second_derivative(x);
+      for (int j = 0; j < np; ++j)
+        e.hessian(j, j) = options_.regularization *
+                          (1 / (dp[j] * dp[j]) - (x[j] - x0[j]) * d2p[j] / (dp[j] * dp[j] * dp[j]));
+    }
+    for (size_t a = 0; a < modes_needed.size(); ++a) {
+      const int i = modes_needed[a];
+      const MeasuredMode& m = problem_.measured[i];
+      const int k = model_of[i];
+      const Vector u = U.col(k);
+      const Matrix X = direct.solution.middleCols(a * np, np);
+      Matrix dU = X;
+      for (int j = 0; j < np; ++j) dU.col(j) -= 0.5 * umu[i][j] * u;
+      const bool has_shape = m.shape.size() && m.shape_weight > 0;
+      if (has_shape) {
         const Vector y = ws.sensors * u;
-        e.jacobian.block(first_row[i], j, ns, 1) =
-            std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), ws.sensors * du);
+        for (int j = 0; j < np; ++j)
+          e.jacobian.block(first_row[i], j, ns, 1) =
+              std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), ws.sensors * dU.col(j));
       }
+      if (need != Need::Hessian) continue;
+      add_mode_hessian(p, i, lambda[k], u, X, dU, dlambda[i], umu[i], has_shape ? shape_gradient[i] : Vector(),
+                       has_shape ? adjoint_solution.col(std::find(shape_modes.begin(), shape_modes.end(), i) - shape_modes.begin())
+                                 : Vector(),
+                       &e.hessian);
     }
   }
   linear_solves_ += e.linear_solves;

@@ -1,4 +1,5 @@
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <chrono>
 #include <cmath>
@@ -103,12 +104,14 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
   if (!options.IsValid(&error)) throw std::invalid_argument("ReducedOptions: " + error);
   const auto start = std::chrono::steady_clock::now();
   const int forward_before = objective.forward_solves(), linear_before = objective.linear_solves();
-  const bool gauss_newton = options.method == ReducedOptions::Method::GaussNewton;
-  const Need need = gauss_newton ? Need::Jacobian : Need::Gradient;
+  // Gauss-Newton and Newton share the damped second-order step; they differ in the model matrix.
+  const bool second_order = options.method != ReducedOptions::Method::Lbfgs;
+  const bool newton = options.method == ReducedOptions::Method::Newton;
+  const Need need = second_order ? Need::Jacobian : Need::Gradient;
   ScaledProblem problem(objective, options);
 
   ReducedSummary summary;
-  summary.method = gauss_newton ? "reduced Gauss-Newton" : "reduced L-BFGS";
+  summary.method = newton ? "reduced Newton" : second_order ? "reduced Gauss-Newton" : "reduced L-BFGS";
   summary.initial = p0;
   auto finish = [&](TerminationType type, const std::string& message, const Point& best) {
     summary.termination = type;
@@ -152,7 +155,14 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
   const double tolerance = std::max(options.gradient_tolerance, options.relative_gradient_tolerance * initial_gradient);
 
   LbfgsMemory memory(options.memory);
-  double damping = 1e-6;  // Levenberg parameter, relative to the Gauss-Newton diagonal
+  // Fletcher-Xu hybrid for Newton: Gauss-Newton while it reduces J by 20 % per step (it is
+  // globally better behaved and needs no second derivatives), the exact Hessian once it slows
+  // down, where only the exact Hessian converges quadratically.
+  bool use_exact_hessian = false;
+  // Levenberg parameter, relative to the Gauss-Newton diagonal: strong at first, so that steps
+  // from a far start stay gradient-like and do not leap into another basin; relaxed by 10 after
+  // every full step.
+  double damping = 1.0;
   for (int k = 1; k <= options.max_iterations; ++k) {
     const double gradient_norm = summary.history.back().gradient_norm;
     if (gradient_norm <= tolerance) {
@@ -163,9 +173,17 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
     }
     const std::vector<bool> active = problem.active_set(current);
     Vector direction;
-    if (gauss_newton) {
-      Matrix H = current.jacobian.transpose() * current.jacobian;
-      H.diagonal() += problem.regularization_hessian(current.x);
+    if (second_order) {
+      Matrix H;
+      if (newton && use_exact_hessian) {
+        Eigen::SelfAdjointEigenSolver<Matrix> eig(0.5 * (current.hessian + current.hessian.transpose()));
+        const Vector mu = eig.eigenvalues().cwiseAbs();
+        const double floor = 1e-8 * std::max(mu.maxCoeff(), 1e-300);
+        H = eig.eigenvectors() * mu.cwiseMax(floor).asDiagonal() * eig.eigenvectors().transpose();
+      } else {
+        H = current.jacobian.transpose() * current.jacobian;
+        H.diagonal() += problem.regularization_hessian(current.x);
+      }
       std::vector<int> free;
       for (int j = 0; j < current.x.size(); ++j)
         if (!active[j]) free.push_back(j);
@@ -188,10 +206,10 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
       memory.clear();
     }
     double step = 1.0;
-    if (!gauss_newton && memory.empty()) step = std::min(1.0, 1.0 / longest(direction));
+    if (!second_order && memory.empty()) step = std::min(1.0, 1.0 / longest(direction));
     step = std::min(step, options.max_step / longest(direction));
     Point next = problem.line_search(current, direction, need, step);
-    if (!next.ok && !gauss_newton && !memory.empty()) {
+    if (!next.ok && !second_order && !memory.empty()) {
       memory.clear();  // a stale quasi-Newton model: retry along the steepest descent
       direction = -masked(current.gradient, active);
       next = problem.line_search(current, direction, need, std::min(1.0, options.max_step) / longest(direction));
@@ -201,7 +219,15 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
       return finish(TerminationType::LineSearchFailed, next.message, current);
     }
     const Vector s = next.x - current.x;
-    if (gauss_newton) {
+    if (second_order) {
+      use_exact_hessian = newton && next.value > 0.8 * current.value;
+      next = problem.evaluate(next.x, use_exact_hessian ? Need::Hessian : Need::Jacobian);
+      if (!next.ok) {
+        summary.iterations = k - 1;
+        return finish(TerminationType::ForwardSolveFailed, "derivatives at the accepted point: " + next.message, current);
+      }
+    }
+    if (second_order) {
       // Full steps mean the Gauss-Newton model is good: trust it more; backtracking: less.
       damping = (s - direction).norm() <= 1e-12 * direction.norm() ? damping / 10 : std::min(damping * 10, 1.0);
       damping = std::max(damping, 1e-12);

@@ -35,7 +35,11 @@ ScaledProblem::Point ScaledProblem::evaluate(const Vector& x, Need need) {
   if (need != Need::Value) {
     const Vector dpdx = scaling_.first_derivative(x);
     point.gradient = e.gradient.cwiseProduct(dpdx);
-    if (need == Need::Jacobian) point.jacobian = e.jacobian * dpdx.asDiagonal();
+    if (need >= Need::Jacobian) point.jacobian = e.jacobian * dpdx.asDiagonal();
+    // Chain rule: d2J/dx2 = D (d2J/dp2) D + diag(dJ/dp * d2p/dx2), D = diag(dp/dx).
+    if (need == Need::Hessian)
+      point.hessian = dpdx.asDiagonal() * e.hessian * dpdx.asDiagonal() +
+                      Matrix(e.gradient.cwiseProduct(scaling_.second_derivative(x)).asDiagonal());
   }
   return point;
 }
@@ -75,9 +79,10 @@ ScaledProblem::Point ScaledProblem::line_search(const Point& from, const Vector&
     const Vector x = project(from.x + step * direction);
     const Vector change = x - from.x;
     if (change.norm() == 0) break;
-    // Derivatives are evaluated with the value: the first trial is usually accepted, and a
-    // second forward solve at the accepted point would cost more than a wasted gradient.
-    Point trial = evaluate(x, need);
+    // First-order derivatives come with the value (the first trial is usually accepted and an
+    // adjoint costs less than a second forward solve); sensitivities and Hessians are only
+    // worth computing at the accepted point, by the caller.
+    Point trial = evaluate(x, need >= Need::Jacobian ? Need::Value : need);
     if (!trial.ok) {
       last_failure = trial.message;  // e.g. an indefinite K: treat as +infinity and backtrack
       continue;

@@ -17,6 +17,7 @@ class ScaledProblem {
     double value = INFINITY;
     Vector gradient;    // d value / dx
     Matrix jacobian;    // d residuals / dx (Gauss-Newton)
+    Matrix hessian;     // d2 value / dx2 (Newton)
     Vector residuals;
     std::string message;
   };
@@ -27,7 +28,8 @@ class ScaledProblem {
   /// Variables held at a bound by a gradient pushing outward.
   std::vector<bool> active_set(const Point& point) const;
   /// Projected backtracking (Armijo) along x(a) = P(x + a d); returns the accepted point, or
-  /// one with ok = false and the reason if no step decreased the objective.
+  /// one with ok = false and the reason if no step decreased the objective. The accepted point
+  /// carries derivatives up to `need`, but never beyond the gradient.
   Point line_search(const Point& from, const Vector& direction, Need need, double initial_step);
   /// Gauss-Newton Hessian of the regularization term in x (diagonal).
   Vector regularization_hessian(const Vector& x) const;
