@@ -161,6 +161,21 @@ TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   EXPECT_GT((scaled_gn - scaled_fd).norm(), 1e-2 * scaled_fd.norm());
 }
 
+TEST(Objective, CentralDifferenceGradientAgreesWithTheAdjointAndCostsTwoSolvesPerParameter) {
+  const Problem problem = LoadModel();
+  Objective adjoint(problem);
+  ObjectiveOptions options;
+  options.gradient = ObjectiveOptions::Gradient::CentralDifferences;
+  Objective differences(problem, options);
+  const Vector p = problem.initial_values();
+  const Evaluation a = adjoint.evaluate(p, Need::Gradient);
+  const int before = differences.forward_solves();
+  const Evaluation d = differences.evaluate(p, Need::Gradient);
+  ASSERT_TRUE(a.ok && d.ok);
+  EXPECT_EQ(differences.forward_solves() - before, 1 + 2 * static_cast<int>(p.size()));
+  EXPECT_LT((a.gradient - d.gradient).norm(), 1e-4 * a.gradient.norm());
+}
+
 TEST(Objective, MacPairingFollowsModesThatSwapOrder) {
   // Measured modes listed in reverse order with MAC pairing: each must find its own model mode.
   Problem problem = LoadModel();

@@ -63,6 +63,13 @@ class ParameterScaling {
 };
 
 struct ObjectiveOptions {
+  /// How gradients are computed: by the adjoint (exact, at most one deflated solve per measured
+  /// shape), or by central differences (2 forward solves per parameter, as a black-box tool
+  /// would; for comparisons and cross-checks). Jacobians and Hessians are always analytic.
+  enum class Gradient { Adjoint, CentralDifferences };
+  Gradient gradient = Gradient::Adjoint;
+  /// Relative step of the central differences. Range: (0, 0.1).
+  double difference_step = 1e-5;
   /// Tikhonov weight alpha (in scaled variables, toward the initial values). Range: >= 0.
   double regularization = 0.0;
   /// Model modes computed beyond the highest one that could be paired; they make MAC pairing

@@ -29,6 +29,8 @@ bool ObjectiveOptions::IsValid(std::string* error) const {
     return bad("linear_tolerance = " + std::to_string(linear_tolerance) + ": must be in (0, 1e-4]");
   if (max_linear_iterations < 1)
     return bad("max_linear_iterations = " + std::to_string(max_linear_iterations) + ": must be >= 1");
+  if (!(difference_step > 0 && difference_step < 0.1))
+    return bad("difference_step = " + std::to_string(difference_step) + ": must be in (0, 0.1)");
   if (!(close_eigenvalue_tolerance > 0 && close_eigenvalue_tolerance < 1))
     return bad("close_eigenvalue_tolerance = " + std::to_string(close_eigenvalue_tolerance) + ": must be in (0, 1)");
   return true;
@@ -278,6 +280,23 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
 
   // --- Gradient (adjoint) and, on request, the residual Jacobian (direct sensitivities).
   const int np = num_parameters();
+  if (need == Need::Gradient && options_.gradient == ObjectiveOptions::Gradient::CentralDifferences) {
+    e.gradient.resize(np);
+    for (int j = 0; j < np; ++j) {
+      const double h = options_.difference_step * std::max(std::abs(p[j]), 1e-300);
+      Vector plus = p, minus = p;
+      plus[j] += h;
+      minus[j] -= h;
+      const Evaluation ep = evaluate(plus), em = evaluate(minus);
+      if (!ep.ok || !em.ok) {
+        e.ok = false;
+        e.message = "finite-difference gradient: " + (ep.ok ? em.message : ep.message);
+        return e;
+      }
+      e.gradient[j] = (ep.value - em.value) / (2 * h);
+    }
+    return e;
+  }
   e.gradient = options_.regularization * (x - x0).cwiseQuotient(regularization_scaling_.first_derivative(x));
   if (need >= Need::Jacobian) e.jacobian = Matrix::Zero(num_residuals_, np);
 
