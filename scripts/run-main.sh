@@ -6,4 +6,4 @@ cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 bash scripts/build.sh
 mkdir -p out
-./build/bin/fullspace_calib modes problems/lfu/synthetic.yaml --params truth --json out/lfu-modes.json
+./build/bin/fullspace_calib calibrate problems/lfu/synthetic.yaml --json out/lfu-synthetic-calibration.json
