@@ -15,6 +15,8 @@
 //                                    [--methods lbfgs,gauss-newton,rol,fd-lbfgs] [--max-iterations 100]
 //                                    [--json OUT]
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -31,15 +33,12 @@
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
-#include "reduced/scaled_problem.hpp"
 #ifdef MODALCAL_WITH_ROL
 #include "rol_baseline.hpp"
 #endif
 
 using namespace modalcal;
 using Clock = std::chrono::steady_clock;
-using detail::ScaledProblem;
-using Point = ScaledProblem::Point;
 
 namespace {
 
@@ -76,154 +75,30 @@ double parameter_error(const Problem& problem, const Vector& p) {
 struct MethodResult {
   std::string method;
   bool built = true;
-  int iterations = 0, forward_solves = 0;
+  int iterations = 0, forward_solves = 0, linear_solves = 0;
   double seconds = 0, parameter_error = NAN, final_objective = NAN;
   bool converged = false;
   std::string termination;
 };
 
-// ---- L-BFGS on finite-difference gradients ------------------------------------------------------
-// minimize_reduced's projected L-BFGS iteration, repeated here because its gradient comes from
-// the Objective's adjoint and cannot be swapped without changing the public API. It shares
-// ScaledProblem (projection, active set, projected Armijo search), so only the gradient differs.
-
-Vector masked(const Vector& v, const std::vector<bool>& active) {
-  Vector out = v;
-  for (int j = 0; j < v.size(); ++j)
-    if (active[j]) out[j] = 0;
-  return out;
-}
-
-// Two-loop recursion on the free variables, with the same curvature safeguard as ours.
-class LbfgsMemory {
- public:
-  explicit LbfgsMemory(int size) : size_(size) {}
-  void update(const Vector& s, const Vector& y) {
-    if (s.dot(y) <= 1e-12 * s.norm() * y.norm()) return;
-    pairs_.push_back({s, y});
-    if (static_cast<int>(pairs_.size()) > size_) pairs_.pop_front();
-  }
-  void clear() { pairs_.clear(); }
-  bool empty() const { return pairs_.empty(); }
-  Vector apply_inverse(const Vector& g, const std::vector<bool>& active) const {
-    Vector q = masked(g, active);
-    std::vector<double> alpha(pairs_.size());
-    for (int i = static_cast<int>(pairs_.size()) - 1; i >= 0; --i) {
-      const Vector s = masked(pairs_[i].s, active), y = masked(pairs_[i].y, active);
-      const double sy = s.dot(y);
-      if (sy <= 0) continue;
-      alpha[i] = s.dot(q) / sy;
-      q -= alpha[i] * y;
-    }
-    if (!pairs_.empty()) {
-      const Vector s = masked(pairs_.back().s, active), y = masked(pairs_.back().y, active);
-      if (s.dot(y) > 0) q *= s.dot(y) / y.squaredNorm();
-    }
-    for (size_t i = 0; i < pairs_.size(); ++i) {
-      const Vector s = masked(pairs_[i].s, active), y = masked(pairs_[i].y, active);
-      const double sy = s.dot(y);
-      if (sy <= 0) continue;
-      q += s * (alpha[i] - y.dot(q) / sy);
-    }
-    return masked(q, active);
-  }
-
- private:
-  struct Pair {
-    Vector s, y;
-  };
-  int size_;
-  std::deque<Pair> pairs_;
-};
-
-// Central differences in the scaled variables, h_j = 1e-6 max(1, |x_j|): truncation O(h^2) and
-// round-off O(eps J / h) balance near there. A stencil may reach h outside the bounds, which the
-// physical model tolerates (h is a millionth of a decade for log scaling).
-bool finite_difference_gradient(ScaledProblem& problem, Point* point) {
-  const int n = static_cast<int>(point->x.size());
-  point->gradient.resize(n);
-  for (int j = 0; j < n; ++j) {
-    Vector plus = point->x, minus = point->x;
-    plus[j] += 1e-6 * std::max(1.0, std::abs(point->x[j]));
-    minus[j] -= plus[j] - point->x[j];
-    const Point a = problem.evaluate(plus, Need::Value), b = problem.evaluate(minus, Need::Value);
-    if (!a.ok || !b.ok) {
-      point->message = "forward solve failed in a finite-difference stencil: " + (a.ok ? b.message : a.message);
-      return false;
-    }
-    point->gradient[j] = (a.value - b.value) / (plus[j] - minus[j]);
-  }
-  return true;
-}
-
-MethodResult finite_difference_lbfgs(Objective& objective, const Vector& p0, const ReducedOptions& options) {
-  MethodResult r;
-  r.method = "L-BFGS, central-FD gradient";
-  ScaledProblem problem(objective, options);
-  Point current = problem.evaluate(problem.project(problem.scaling().to_scaled(p0)), Need::Value);
-  if (!current.ok || !finite_difference_gradient(problem, &current)) {
-    r.termination = to_string(TerminationType::ForwardSolveFailed);
-    return r;
-  }
-  const double tolerance = std::max(options.gradient_tolerance,
-                                    options.relative_gradient_tolerance * problem.projected_gradient(current).norm());
-  LbfgsMemory memory(options.memory);
-  r.termination = to_string(TerminationType::MaxIterations);
-  while (true) {
-    if (problem.projected_gradient(current).norm() <= tolerance) {
-      r.converged = true;
-      r.termination = to_string(TerminationType::Converged);
-      break;
-    }
-    if (r.iterations == options.max_iterations) break;
-    const std::vector<bool> active = problem.active_set(current);
-    Vector direction = -memory.apply_inverse(current.gradient, active);
-    if (!(direction.dot(current.gradient) < 0)) {
-      direction = -masked(current.gradient, active);
-      memory.clear();
-    }
-    double step = memory.empty() ? std::min(1.0, 1.0 / direction.lpNorm<Eigen::Infinity>()) : 1.0;
-    step = std::min(step, options.max_step / direction.lpNorm<Eigen::Infinity>());
-    // Trial points need only the value: the 2n-solve gradient is paid at the accepted point.
-    Point next = problem.line_search(current, direction, Need::Value, step);
-    if (!next.ok && !memory.empty()) {
-      memory.clear();
-      direction = -masked(current.gradient, active);
-      next = problem.line_search(current, direction, Need::Value,
-                                 std::min(1.0, options.max_step) / direction.lpNorm<Eigen::Infinity>());
-    }
-    if (!next.ok) {
-      r.termination = to_string(TerminationType::LineSearchFailed);
-      break;
-    }
-    if (!finite_difference_gradient(problem, &next)) {
-      r.termination = to_string(TerminationType::ForwardSolveFailed);
-      break;
-    }
-    memory.update(next.x - current.x, next.gradient - current.gradient);
-    current = next;
-    ++r.iterations;
-  }
-  r.parameter_error = parameter_error(objective.problem(), current.p);
-  r.final_objective = current.value;
-  return r;
-}
-
-// ---- the runs ------------------------------------------------------------------------------------
-
 // Each method gets a fresh Objective so that no solver state carries over from another method;
 // its construction is outside the timing, as in minimize_reduced's own figures.
 MethodResult run_method(const Problem& problem, const std::string& method, const ReducedOptions& options) {
-  Objective objective(problem);
+  // The black-box baseline is our own L-BFGS with the gradient taken by central differences.
+  ObjectiveOptions objective_options;
+  if (method == "fd-lbfgs") objective_options.gradient = ObjectiveOptions::Gradient::CentralDifferences;
+  Objective objective(problem, objective_options);
   const Vector p0 = problem.initial_values();
-  const int solves_before = objective.forward_solves();
+  const int solves_before = objective.forward_solves(), linear_before = objective.linear_solves();
   const auto t0 = Clock::now();
   MethodResult r;
-  if (method == "lbfgs" || method == "gauss-newton") {
+  if (method == "lbfgs" || method == "gauss-newton" || method == "fd-lbfgs") {
     ReducedOptions o = options;
     if (method == "gauss-newton") o.method = ReducedOptions::Method::GaussNewton;
     const ReducedSummary s = minimize_reduced(objective, p0, o);
-    r.method = method == "lbfgs" ? "L-BFGS (ours, adjoint)" : "Gauss-Newton (ours)";
+    r.method = method == "lbfgs"          ? "L-BFGS (ours, adjoint)"
+               : method == "gauss-newton" ? "Gauss-Newton (ours)"
+                                          : "L-BFGS, central-difference gradient";
     r.iterations = s.iterations;
     r.converged = s.converged();
     r.termination = to_string(s.termination);
@@ -245,11 +120,10 @@ MethodResult run_method(const Problem& problem, const std::string& method, const
     r.termination = "not built (configure with -DMODALCAL_WITH_ROL=ON)";
     return r;
 #endif
-  } else {
-    r = finite_difference_lbfgs(objective, p0, options);
   }
   r.seconds = seconds_since(t0);
   r.forward_solves = objective.forward_solves() - solves_before;
+  r.linear_solves = objective.linear_solves() - linear_before;
   return r;
 }
 
@@ -264,41 +138,71 @@ Problem eigenvalue_only(const Problem& problem) {
   return copy;
 }
 
-struct GradientCost {
-  double value_s = 0, gradient_s = 0;
-  int linear_solves = 0;  // adjoint right-hand sides per gradient
-  double fraction() const { return (gradient_s - value_s) / value_s; }
+// Wall and CPU seconds of one evaluation. On a shared machine the wall time includes waiting for
+// other processes, which swamps a gradient that costs a few percent of a solve; CPU time (all
+// threads of this process) is not charged while it waits.
+struct Timing {
+  double wall = 0, cpu = 0;
+  int linear_solves = 0;  // adjoint right-hand sides
 };
 
-// Median of five timings each, interleaved so that both see the same solver state, after one
+double cpu_seconds() {
+  struct rusage usage;
+  getrusage(RUSAGE_SELF, &usage);
+  auto seconds = [](const timeval& t) { return t.tv_sec + 1e-6 * t.tv_usec; };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
+Timing time_evaluation(Objective& objective, const Vector& p, Need need) {
+  const auto wall0 = Clock::now();
+  const double cpu0 = cpu_seconds();
+  const Evaluation e = objective.evaluate(p, need);
+  if (!e.ok) throw std::runtime_error("cannot evaluate the start point: " + e.message);
+  return {seconds_since(wall0), cpu_seconds() - cpu0, e.linear_solves};
+}
+
+struct GradientCost {
+  Timing value, gradient;  // medians
+  int linear_solves = 0;   // adjoint right-hand sides per gradient
+  double wall_fraction() const { return (gradient.wall - value.wall) / value.wall; }
+  double cpu_fraction() const { return (gradient.cpu - value.cpu) / value.cpu; }
+};
+
+// Medians of five timings each, interleaved so that both see the same solver state, after one
 // warm-up evaluation (first-call setup such as the symbolic analysis is not a gradient cost).
 GradientCost gradient_cost(const Problem& problem) {
   Objective objective(problem);
   const Vector p = problem.initial_values();
-  if (!objective.evaluate(p, Need::Gradient).ok) throw std::runtime_error("cannot evaluate the start point");
-  std::vector<double> value_s, gradient_s;
   GradientCost c;
+  time_evaluation(objective, p, Need::Gradient);
+  std::vector<double> value_wall, value_cpu, gradient_wall, gradient_cpu;
   for (int k = 0; k < 5; ++k) {
-    auto t0 = Clock::now();
-    objective.evaluate(p, Need::Value);
-    value_s.push_back(seconds_since(t0));
-    t0 = Clock::now();
-    c.linear_solves = objective.evaluate(p, Need::Gradient).linear_solves;
-    gradient_s.push_back(seconds_since(t0));
+    const Timing v = time_evaluation(objective, p, Need::Value);
+    const Timing g = time_evaluation(objective, p, Need::Gradient);
+    c.linear_solves = g.linear_solves;
+    value_wall.push_back(v.wall);
+    value_cpu.push_back(v.cpu);
+    gradient_wall.push_back(g.wall);
+    gradient_cpu.push_back(g.cpu);
   }
-  c.value_s = median(value_s);
-  c.gradient_s = median(gradient_s);
+  c.value = {median(value_wall), median(value_cpu)};
+  c.gradient = {median(gradient_wall), median(gradient_cpu)};
   return c;
 }
 
+void print(const char* name, const GradientCost& c, const char* target) {
+  std::printf("  %-18s %8.3f %8.3f %8.1f%% %8.3f %8.3f %8.1f%% %6d  %s\n", name, c.value.wall, c.gradient.wall,
+              100 * c.wall_fraction(), c.value.cpu, c.gradient.cpu, 100 * c.cpu_fraction(), c.linear_solves, target);
+}
+
 nlohmann::json to_json(const GradientCost& c) {
-  return {{"value_s", c.value_s}, {"gradient_s", c.gradient_s}, {"fraction_of_forward_solve", c.fraction()},
+  return {{"value_wall_s", c.value.wall}, {"gradient_wall_s", c.gradient.wall},
+          {"value_cpu_s", c.value.cpu}, {"gradient_cpu_s", c.gradient.cpu},
+          {"fraction_of_forward_solve_wall", c.wall_fraction()}, {"fraction_of_forward_solve_cpu", c.cpu_fraction()},
           {"linear_solves", c.linear_solves}};
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string problem_path = std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu/synthetic.yaml";
   std::vector<double> refinements = {1.0, 1.5};
   const std::vector<std::string> all_methods = {"lbfgs", "gauss-newton", "rol", "fd-lbfgs"};
@@ -324,6 +228,11 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  std::string error;
+  if (!options.IsValid(&error)) {
+    std::fprintf(stderr, "%s\n", error.c_str());
+    return 2;
+  }
   for (const std::string& m : methods)
     if (std::find(all_methods.begin(), all_methods.end(), m) == all_methods.end()) {
       std::fprintf(stderr, "unknown method '%s'\n", m.c_str());
@@ -343,29 +252,29 @@ int main(int argc, char** argv) {
 
     const GradientCost eigenvalues = gradient_cost(eigenvalue_only(problem));
     const GradientCost shapes = gradient_cost(problem);
-    std::printf("gradient cost at the start, as a fraction of one forward solve (median of 5):\n");
-    std::printf("  %-22s %10s %12s %10s %8s %s\n", "objective", "value s", "gradient s", "fraction", "rhs", "target");
-    std::printf("  %-22s %10.4f %12.4f %9.1f%% %8d %s\n", "eigenvalues only", eigenvalues.value_s,
-                eigenvalues.gradient_s, 100 * eigenvalues.fraction(), eigenvalues.linear_solves, "<= 2 %");
-    std::printf("  %-22s %10.4f %12.4f %9.1f%% %8d %s\n", "with mode shapes", shapes.value_s, shapes.gradient_s,
-                100 * shapes.fraction(), shapes.linear_solves, "<= 100 %");
+    std::printf("gradient cost at the start: (gradient - value) / value, medians of 5, wall and CPU seconds\n");
+    std::printf("  %-18s %8s %8s %9s %8s %8s %9s %6s  %s\n", "objective", "value", "gradient", "fraction",
+                "cpu val", "cpu grad", "fraction", "rhs", "target");
+    print("eigenvalues only", eigenvalues, "<= 2 %");
+    print("with mode shapes", shapes, "<= 100 %");
     std::fflush(stdout);
 
-    std::printf("  %-30s %6s %8s %9s %11s %12s %5s  %s\n", "method", "iters", "solves", "time s", "param err",
-                "objective", "conv", "termination");
+    std::printf("  %-30s %6s %8s %8s %9s %11s %12s %5s  %s\n", "method", "iters", "solves", "rhs", "time s",
+                "param err", "objective", "conv", "termination");
     nlohmann::json results = nlohmann::json::array();
     for (const std::string& method : methods) {
       const MethodResult r = run_method(problem, method, options);
       if (r.built)
-        std::printf("  %-30s %6d %8d %9.2f %11.3e %12.4e %5s  %s\n", r.method.c_str(), r.iterations, r.forward_solves,
-                    r.seconds, r.parameter_error, r.final_objective, r.converged ? "yes" : "no",
-                    r.termination.c_str());
+        std::printf("  %-30s %6d %8d %8d %9.2f %11.3e %12.4e %5s  %s\n", r.method.c_str(), r.iterations,
+                    r.forward_solves, r.linear_solves, r.seconds, r.parameter_error, r.final_objective,
+                    r.converged ? "yes" : "no", r.termination.c_str());
       else
         std::printf("  %-30s %s\n", r.method.c_str(), r.termination.c_str());
       std::fflush(stdout);
       nlohmann::json m = {{"method", r.method}, {"built", r.built}, {"termination", r.termination}};
       if (r.built)
-        m.update({{"iterations", r.iterations}, {"forward_solves", r.forward_solves}, {"seconds", r.seconds},
+        m.update({{"iterations", r.iterations}, {"forward_solves", r.forward_solves},
+                  {"linear_solves", r.linear_solves}, {"seconds", r.seconds},
                   {"max_relative_parameter_error", r.parameter_error}, {"final_objective", r.final_objective},
                   {"converged", r.converged}});
       results.push_back(m);
@@ -376,4 +285,15 @@ int main(int argc, char** argv) {
   }
   if (!json_path.empty()) write_file_atomically(json_path, json.dump(2) + "\n");
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "reduced_baselines_benchmark: %s\n", e.what());
+    return 1;
+  }
 }

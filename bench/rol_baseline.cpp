@@ -100,7 +100,6 @@ RolRun rol_projected_lbfgs(Objective& objective, const Vector& p0, const Reduced
   run.converged = state->statusFlag == ROL::EXITSTATUS_CONVERGED;
   if (run.status.empty()) run.status = ROL::EExitStatusToString(state->statusFlag);
   run.iterations = state->iter;
-  run.gradient_norm = state->gnorm;
   run.final = problem.scaling().to_physical(to_eigen(*x));
   run.final_objective = state->value;
   return run;

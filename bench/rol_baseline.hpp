@@ -16,7 +16,6 @@ struct RolRun {
   int iterations = 0;
   Vector final;            // physical parameters of the last iterate
   double final_objective = 0;
-  double gradient_norm = 0;  // ROL's criticality measure |P(x - g) - x|, as ours
 };
 
 // Runs ROL with `options`' method-independent settings: iteration limit, absolute gradient
