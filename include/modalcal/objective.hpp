@@ -112,6 +112,12 @@ struct Evaluation {
   /// the formulas: eigenvector sensitivities for every paired mode, and the adjoint w_0 in place
   /// of second eigenvector derivatives.
   Matrix hessian;
+  /// Adjoint variables of the eigenproblem constraints at p (with Need::Gradient or more, adjoint
+  /// gradient only): column i is \f$w_i = w_{0i} + J_{\lambda_i} u_i\f$ for measured mode i, the
+  /// multiplier of \f$(K - \lambda_i M) u_i = 0\f$, and `adjoint_eta[i]` that of
+  /// \f$u_i^T M u_i - 1 = 0\f$. They are the Lagrange multipliers the full-space method starts from.
+  Matrix adjoint;
+  Vector adjoint_eta;
   std::vector<PairedMode> pairs;
   std::vector<std::string> warnings; ///< e.g. nearly repeated eigenvalues, pairing changed
   ModalResult modal;

@@ -311,6 +311,8 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
 
   // Eigenvalue sensitivities of every paired mode: dlambda/dp_j = u^T (K_j - lambda M_j) u.
   std::vector<Vector> dlambda(num_measured), umu(num_measured);
+  e.adjoint = Matrix::Zero(U.rows(), num_measured);
+  e.adjoint_eta = Vector::Zero(num_measured);
   for (int i = 0; i < num_measured; ++i) {
     const int k = model_of[i];
     Vector a, b;
@@ -320,6 +322,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     const MeasuredMode& m = problem_.measured[i];
     const double target = eigenvalue_of_hz(m.frequency_hz);
     e.gradient += m.weight * e.pairs[i].relative_error / target * dlambda[i];
+    e.adjoint.col(i) = m.weight * e.pairs[i].relative_error / target * U.col(k);  // J_lambda u
     if (need >= Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) / target * dlambda[i].transpose();
   }
 
@@ -346,7 +349,8 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     shape_modes.push_back(i);
     own.push_back(nr + model_of[i]);
     // eta_i u^T M_j u with eta_i = -u^T J_u / 2.
-    e.gradient += -0.5 * u.dot(Ju) * umu[i];
+    e.adjoint_eta[i] = -0.5 * u.dot(Ju);
+    e.gradient += e.adjoint_eta[i] * umu[i];
   }
   Matrix adjoint_solution(U.rows(), 0);
   if (!shape_modes.empty()) {
@@ -364,6 +368,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       Vector a, b;
       system_->derivative_forms(p, adjoint.solution.col(s), U.col(k), &a, &b);
       e.gradient += a - lambda[k] * b;
+      e.adjoint.col(shape_modes[s]) += adjoint.solution.col(s);
     }
     adjoint_solution = adjoint.solution;
   }
