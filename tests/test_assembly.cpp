@@ -149,6 +149,44 @@ TEST(ParametricSystem, ProductsAndFormsAgreeWithAssembledDerivatives) {
   }
 }
 
+// The objective takes the eigenvalue sensitivities of all paired modes (and the adjoint forms of
+// all shapes) in one blocked call: it must give exactly what one call per column gives, also
+// when V and U are the same matrix (its shortcut) and for terms no parameter touches.
+TEST(ParametricSystem, BlockedFormsEqualPerColumnForms) {
+  Fixture f = Load();
+  const int n = f.system->num_dofs(), np = f.system->num_parameters(), m = 5;
+  Matrix U(n, m), V(n, m);
+  for (int c = 0; c < m; ++c) {
+    U.col(c) = Vector::LinSpaced(n, -1.0 - c, 2.0 + 0.5 * c).array().sin();
+    V.col(c) = Vector::LinSpaced(n, 0.5 * c, 3.0 + c).array().cos();
+  }
+  Matrix A, B, Auu, Buu;
+  f.system->derivative_forms(f.p0, V, U, &A, &B);
+  f.system->derivative_forms(f.p0, U, U, &Auu, &Buu);
+  ASSERT_EQ(A.rows(), np);
+  ASSERT_EQ(A.cols(), m);
+  ASSERT_EQ(Buu.rows(), np);
+  ASSERT_EQ(Buu.cols(), m);
+  for (int c = 0; c < m; ++c) {
+    Vector a, b, auu, buu;
+    f.system->derivative_forms(f.p0, Vector(V.col(c)), Vector(U.col(c)), &a, &b);
+    f.system->derivative_forms(f.p0, Vector(U.col(c)), Vector(U.col(c)), &auu, &buu);
+    for (int j = 0; j < np; ++j) {
+      EXPECT_NEAR(A(j, c), a[j], 1e-14 * (1 + std::abs(a[j]))) << f.problem.parameters[j].name << ", column " << c;
+      EXPECT_NEAR(B(j, c), b[j], 1e-14 * (1 + std::abs(b[j]))) << f.problem.parameters[j].name << ", column " << c;
+      EXPECT_NEAR(Auu(j, c), auu[j], 1e-14 * (1 + std::abs(auu[j]))) << f.problem.parameters[j].name;
+      EXPECT_NEAR(Buu(j, c), buu[j], 1e-14 * (1 + std::abs(buu[j]))) << f.problem.parameters[j].name;
+    }
+  }
+  // No columns: empty results; mismatched blocks are refused.
+  f.system->derivative_forms(f.p0, Matrix(n, 0), Matrix(n, 0), &A, &B);
+  EXPECT_EQ(A.rows(), np);
+  EXPECT_EQ(A.cols(), 0);
+  EXPECT_THROW(f.system->derivative_forms(f.p0, V, Matrix(U.leftCols(m - 1)), &A, &B), std::invalid_argument);
+  EXPECT_THROW(f.system->derivative_forms(f.p0, Matrix(V.topRows(n - 1)), Matrix(U.topRows(n - 1)), &A, &B),
+               std::invalid_argument);
+}
+
 TEST(ParametricSystem, MatricesAreSymmetricAndTotalMassIsExact) {
   Fixture f = Load();
   SparseMatrix K, M;

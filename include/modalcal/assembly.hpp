@@ -105,6 +105,13 @@ class ParametricSystem {
   /// \f$ a_j = v^T \partial K/\partial p_j\, u,\; b_j = v^T \partial M/\partial p_j\, u \f$ for all j.
   /// With v = u this is the eigenvalue sensitivity \f$\partial\lambda/\partial p_j = a_j - \lambda b_j\f$.
   void derivative_forms(const Vector& p, const Vector& v, const Vector& u, Vector* a, Vector* b) const;
+  /// Blocked form of the above for m pairs of vectors at once: column c of A and B
+  /// (num_parameters x m) holds \f$ V_c^T \partial K/\partial p_j\, U_c \f$ and
+  /// \f$ V_c^T \partial M/\partial p_j\, U_c \f$ (V_c, U_c the c-th columns), each the same as the
+  /// single-pair call. One pass over the assembly terms serves every column, so the
+  /// sensitivities of all paired modes cost little more than those of one.
+  /// \throws std::invalid_argument if V and U are not both num_dofs() x m.
+  void derivative_forms(const Vector& p, const Matrix& V, const Matrix& U, Matrix* A, Matrix* B) const;
   /// Same with second derivatives: \f$ A_{jk} = v^T \partial^2 K/\partial p_j\partial p_k\, u\f$.
   void second_derivative_forms(const Vector& p, const Vector& v, const Vector& u, Matrix* A,
                                Matrix* B) const;

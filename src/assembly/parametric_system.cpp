@@ -437,6 +437,53 @@ void ParametricSystem::derivative_forms(const Vector& p, const Vector& v, const 
   }
 }
 
+void ParametricSystem::derivative_forms(const Vector& p, const Matrix& V, const Matrix& U, Matrix* A,
+                                        Matrix* B) const {
+  if (V.rows() != num_dofs() || U.rows() != num_dofs() || V.cols() != U.cols())
+    throw std::invalid_argument("derivative_forms: V is " + std::to_string(V.rows()) + " x " +
+                                std::to_string(V.cols()) + " and U is " + std::to_string(U.rows()) + " x " +
+                                std::to_string(U.cols()) + "; both must be " + std::to_string(num_dofs()) +
+                                " x m");
+  const Vector theta = property_values(p);
+  const int m = static_cast<int>(U.cols());
+  A->setZero(num_parameters(), m);
+  B->setZero(num_parameters(), m);
+  if (m == 0) return;
+  // Row-major copies: the m entries a term position needs are contiguous, so the pass over the
+  // terms streams positions and values once and the column loop vectorizes. Same products in
+  // the same order per column as the single-pair version.
+  using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const RowMajorMatrix Ur = U;
+  RowMajorMatrix Vr;
+  const bool same = V.data() == U.data();
+  if (!same) Vr = V;
+  const double* u_rows = Ur.data();
+  const double* v_rows = same ? Ur.data() : Vr.data();
+  const int* rows = pattern_.innerIndexPtr();
+  std::vector<double> form(m);
+  Vector gradient;
+  Matrix hessian;
+  for (const Term& t : terms_) {
+    if (t.parameters.empty()) continue;
+    std::fill(form.begin(), form.end(), 0.0);
+    double* f = form.data();
+    for (size_t i = 0; i < t.positions.size(); ++i) {
+      const int position = t.positions[i];
+      const double* v = v_rows + static_cast<size_t>(rows[position]) * m;
+      const double* u = u_rows + static_cast<size_t>(columns_[position]) * m;
+      const double value = t.values[i];
+      for (int c = 0; c < m; ++c) f[c] += v[c] * value * u[c];
+    }
+    t.coefficient.derivatives(theta, &gradient, &hessian);
+    const std::vector<PropertyId> involved = t.coefficient.involved();
+    Matrix& target = t.mass ? *B : *A;
+    for (int j : t.parameters) {
+      const double scale = parameter_derivative(gradient, involved, property_parameter_, j);
+      for (int c = 0; c < m; ++c) target(j, c) += form[c] * scale;
+    }
+  }
+}
+
 void ParametricSystem::second_derivative_forms(const Vector& p, const Vector& v, const Vector& u, Matrix* A,
                                                Matrix* B) const {
   const Vector theta = property_values(p);
