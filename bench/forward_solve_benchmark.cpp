@@ -17,10 +17,10 @@
 #include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "bench_util.hpp"
 #include "eigen/cholmod_factor.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
@@ -28,19 +28,12 @@
 #include "modalcal/problem.hpp"
 
 using namespace modalcal;
+using modalcal::bench::parse_list;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-std::vector<double> parse_list(const std::string& text) {
-  std::vector<double> out;
-  std::stringstream s(text);
-  std::string item;
-  while (std::getline(s, item, ',')) out.push_back(std::stod(item));
-  return out;
-}
 
 struct CaseResult {
   double refinement = 0;
@@ -120,9 +113,7 @@ CaseResult run_in_child(const std::string& problem_path, double refinement, int 
   return r;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   std::string problem_path = std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu/lfu.yaml";
   std::vector<double> targets = {3e4, 1e5, 3e5};
   std::vector<double> mode_counts = {10, 20};
@@ -179,4 +170,15 @@ int main(int argc, char** argv) {
   }
   if (!json_path.empty()) write_file_atomically(json_path, json.dump(2) + "\n");
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "forward_solve_benchmark: %s\n", e.what());
+    return 1;
+  }
 }
