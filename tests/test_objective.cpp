@@ -13,57 +13,10 @@ namespace {
 
 using testing::WriteTempFile;
 
-// A two-block cantilever with a joint to a
-// reference node carrying a point mass, springs at the root, sensors on the top edge, and six
-// measured modes with shapes synthesized at the truth values. The section is not square, so no
-// two modes share an eigenvalue (their shapes would not be differentiable).
-const char* kModel = R"(
-mesh:
-  element: hex8
-  element_size: 0.5
-  boxes:
-    - {block: a, min: [0, 0, 0], max: [3, 1, 1.25]}
-    - {block: b, min: [3, 0, 0], max: [5, 1, 1.25]}
-blocks:
-  a: {E: 2.0e3, nu: 0.3, density: 1.0, stiffness_scale: 1.0, mass_scale: 1.0}
-  b: {K: 1.5e3, G: 0.8e3, density: 2.0}
-node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 1, 1.25]}}
-  tip: {box: {min: [5, 0, 0], max: [5, 1, 1.25]}}
-reference_nodes:
-  r: [5.5, 0.5, 0.625]
-  g: [5.5, 0.5, 0.625]
-rigid_couplings:
-  - {reference: r, node_set: tip}
-joints:
-  j: {nodes: [r, g], kx: 100, ky: 200, kz: 300, krx: 10, kry: 20, krz: 30}
-springs:
-  s: {node_set: root, kx: 5.0e3, ky: 6.0e3, kz: 7.0e3}
-point_masses:
-  pm: {node: g, mass: 0.5, inertia: [0.01, 0.02, 0.03]}
-parameters:
-  E: {targets: [a.E], initial: 2.0e3, lower: 1, upper: 1e5, truth: 2.4e3, scaling: log}
-  nu: {targets: [a.nu], initial: 0.3, lower: 0.0, upper: 0.45, truth: 0.25}
-  K: {targets: [b.K], initial: 1.5e3, lower: 1, upper: 1e5, truth: 1.2e3}
-  G: {targets: [b.G], initial: 0.8e3, lower: 1, upper: 1e5, truth: 0.9e3}
-  rho: {targets: [a.density, b.density], initial: 1.5, lower: 0.1, upper: 10, truth: 1.4}
-  kscale: {targets: [a.stiffness_scale], initial: 1.2, lower: 0.1, upper: 10, truth: 1.0}
-  mscale: {targets: [a.mass_scale], initial: 0.9, lower: 0.1, upper: 10, truth: 1.1}
-  kx: {targets: [j.kx], initial: 100, lower: 1, upper: 1e4, truth: 150}
-  krz: {targets: [j.krz], initial: 30, lower: 1, upper: 1e4, truth: 20}
-  spring: {targets: [s.ky], initial: 6.0e3, lower: 1, upper: 1e5, truth: 5.0e3}
-  mass: {targets: [pm.mass], initial: 0.5, lower: 0.01, upper: 10, truth: 0.6}
-  inertia: {targets: [pm.Ixx], initial: 0.01, lower: 0.001, upper: 1, truth: 0.012}
-sensors:
-  - {node_set: tip, directions: [x, y, z]}
-  - {at: [2.5, 1, 1.25], directions: [y, z]}
-measured:
-  synthetic: {modes: [1, 2, 3, 4, 5, 6], shapes: true}
-options:
-  num_modes: 8
-)";
+using testing::kEveryParameterKindModel;
 
-Problem LoadModel() { return load_problem(WriteTempFile("model.yaml", kModel)); }
+
+Problem LoadModel() { return load_problem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
 
 TEST(Objective, VanishesAtTheTruthAndIsPositiveElsewhere) {
   const Problem problem = LoadModel();

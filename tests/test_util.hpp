@@ -18,6 +18,13 @@ namespace modalcal::testing {
 /// Max-abs-entry relative difference of two matrices, scaled by max |b|.
 double RelativeDifference(const Matrix& a, const Matrix& b);
 
+/// Problem file text: a two-block cantilever with a joint to a reference node carrying a point
+/// mass, springs at the root, sensors on the top edge, six measured modes with shapes
+/// synthesized at the truth values, and a parameter of every kind (E, nu, K, G, densities,
+/// stiffness and mass scales, joint, spring, point mass and inertia). Not every combination is
+/// identifiable (E and the stiffness scale of the same block act alike): for derivative checks.
+extern const char* const kEveryParameterKindModel;
+
 /// Path of a file in the source tree.
 std::string SourcePath(const std::string& relative);
 

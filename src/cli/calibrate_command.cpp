@@ -10,6 +10,7 @@
 #include "cli/calibration_report.hpp"
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
 
 namespace modalcal::cli {
@@ -18,7 +19,7 @@ namespace {
 
 struct CalibrateArgs {
   std::string problem;
-  std::string method = "reduced-lbfgs";
+  std::string method = "fullspace";
   std::string scaling;
   bool no_bounds = false;
   std::string json;
@@ -27,6 +28,12 @@ struct CalibrateArgs {
   double start_factor = 1;
   double regularization = 0;
   bool quiet = false;
+  // Full-space tuning, for studies of what each safeguard buys.
+  int globalization = FullSpaceOptions().globalization_iterations;
+  bool no_guard = false;
+  double mu_init = FullSpaceOptions().mu_init;
+  bool limited_memory = false;
+  int print_level = 0;
 };
 
 Scaling parse_scaling(const std::string& name) {
@@ -36,36 +43,67 @@ Scaling parse_scaling(const std::string& name) {
   throw InputError("--scaling " + name + ": expected none, linear or log");
 }
 
+void print_iteration(const IterationRecord& r) {
+  std::fprintf(stderr, "  iter %3d  J = %.6e  |pg| = %.3e  solves %d%s\n", r.iteration, r.objective, r.gradient_norm,
+               r.forward_solves,
+               std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
+}
+
+void print_kkt(const KktRecord& r) {
+  std::fprintf(stderr, "  newton %3d  J = %.6e  inf_pr %.2e  inf_du %.2e  compl %.2e  guard MAC %.4f%s\n", r.iteration,
+               r.objective, r.primal_infeasibility, r.dual_infeasibility, r.complementarity, r.min_mac,
+               std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
+}
+
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   ObjectiveOptions objective_options;
   objective_options.regularization = args.regularization;
   Objective objective(problem, objective_options);
-  ReducedOptions options;
-  options.method = parse_method(args.method);
-  options.max_iterations = args.max_iterations;
-  options.use_bounds = !args.no_bounds;
-  if (!args.scaling.empty()) options.scaling = parse_scaling(args.scaling);
-  if (!args.quiet)
-    options.progress = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  iter %3d  J = %.6e  |pg| = %.3e  solves %d%s\n", r.iteration, r.objective,
-                   r.gradient_norm, r.forward_solves,
-                   std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
-    };
-  Vector p0 = problem.initial_values() * args.start_factor;
+  const std::optional<Scaling> scaling =
+      args.scaling.empty() ? std::nullopt : std::optional<Scaling>(parse_scaling(args.scaling));
+  const Vector p0 = problem.initial_values() * args.start_factor;
   std::printf("%s: %d parameters, %zu measured modes, %d DOFs, method %s\n", problem.path.c_str(),
               objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
-  const ReducedSummary summary = minimize_reduced(objective, p0, options);
-  std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
-
-  CalibrationReport report = make_report(objective, summary);
+  CalibrationReport report;
+  bool converged = false;
+  if (args.method == "fullspace") {
+    if (args.no_bounds) throw InputError("--no-bounds: the full-space method always uses the parameters' bounds");
+    FullSpaceOptions options;
+    options.max_iterations = std::max(1, args.max_iterations);
+    options.scaling = scaling;
+    options.globalization_iterations = args.globalization;
+    options.mode_guard = !args.no_guard;
+    options.mu_init = args.mu_init;
+    options.print_level = args.print_level;
+    if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
+    if (!args.quiet) options.progress = print_kkt;
+    std::fflush(stdout);
+    const FullSpaceSummary summary = minimize_fullspace(objective, p0, options);
+    std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
+    report = make_report(objective, summary.initial, summary.final);
+    report.summary = summary_json(problem, summary);
+    converged = summary.converged();
+  } else {
+    ReducedOptions options;
+    options.method = parse_method(args.method);
+    options.max_iterations = args.max_iterations;
+    options.use_bounds = !args.no_bounds;
+    options.scaling = scaling;
+    if (!args.quiet) options.progress = print_iteration;
+    const ReducedSummary summary = minimize_reduced(objective, p0, options);
+    std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
+    report = make_report(objective, summary.initial, summary.final);
+    report.summary = summary_json(problem, summary);
+    converged = summary.converged();
+  }
   report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},
                      {"bounds", !args.no_bounds},
                      {"start_factor", args.start_factor},
                      {"regularization", args.regularization}};
   std::fputs(report.text.c_str(), stdout);
   write_json(args.json, report.json(), problem);
-  return summary.final.size() ? 0 : 1;
+  return converged ? 0 : 1;
 }
 
 }  // namespace
@@ -74,8 +112,8 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the parameters against the measured modes");
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--method", args->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
-      ->check(CLI::IsMember(method_names()));
+  cmd->add_option("--method", args->method, "fullspace (default), reduced-lbfgs, reduced-gauss-newton or reduced-newton")
+      ->check(CLI::IsMember(calibration_method_names()));
   cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
       ->check(CLI::IsMember({"none", "linear", "log"}));
   cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
@@ -86,6 +124,14 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
+  cmd->add_option("--globalization", args->globalization,
+                  "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
+  cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
+  cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");
+  cmd->add_option("--ipopt-print-level", args->print_level, "fullspace: Ipopt's own output (0-12, default 0)")
+      ->check(CLI::Range(0, 12));
   cmd->callback([args, exit_code] { *exit_code = run_calibrate(*args); });
 }
 

@@ -13,7 +13,7 @@ nlohmann::json CalibrationReport::json() const {
   return out;
 }
 
-CalibrationReport make_report(Objective& objective, const ReducedSummary& summary) {
+CalibrationReport make_report(Objective& objective, const Vector& initial, const Vector& final) {
   const Problem& problem = objective.problem();
   CalibrationReport report;
   char line[320];
@@ -21,11 +21,11 @@ CalibrationReport make_report(Objective& objective, const ReducedSummary& summar
                 "error %", "lower", "upper");
   report.text = line;
   report.parameters = nlohmann::json::array();
-  const bool have_final = summary.final.size() == static_cast<int>(problem.parameters.size());
+  const bool have_final = final.size() == static_cast<int>(problem.parameters.size());
   for (size_t j = 0; j < problem.parameters.size(); ++j) {
     const Parameter& q = problem.parameters[j];
-    const double final_value = have_final ? summary.final[j] : NAN;
-    nlohmann::json entry = {{"name", q.name}, {"initial", summary.initial[j]}, {"final", final_value},
+    const double final_value = have_final ? final[j] : NAN;
+    nlohmann::json entry = {{"name", q.name}, {"initial", initial[j]}, {"final", final_value},
                             {"lower", q.lower}, {"upper", q.upper}};
     std::string truth = "-", error = "-";
     if (q.truth) {
@@ -38,12 +38,12 @@ CalibrationReport make_report(Objective& objective, const ReducedSummary& summar
     }
     report.parameters.push_back(entry);
     std::snprintf(line, sizeof line, "%-14s %13.4e %13.4e %13s %10s %11.3e %11.3e\n", q.name.c_str(),
-                  summary.initial[j], final_value, truth.c_str(), error.c_str(), q.lower, q.upper);
+                  initial[j], final_value, truth.c_str(), error.c_str(), q.lower, q.upper);
     report.text += line;
   }
   report.modes = nlohmann::json::array();
   if (have_final) {
-    const Evaluation e = objective.evaluate(summary.final);
+    const Evaluation e = objective.evaluate(final);
     report.text += "\n";
     std::snprintf(line, sizeof line, "%-12s %10s %14s %14s %9s %7s\n", "measured", "model mode", "measured [Hz]",
                   "predicted [Hz]", "error %", "MAC");
@@ -63,27 +63,92 @@ CalibrationReport make_report(Objective& objective, const ReducedSummary& summar
     }
     for (const std::string& w : e.warnings) report.text += "warning: " + w + "\n";
   }
+  return report;
+}
+
+namespace {
+
+nlohmann::json history_json(const std::vector<IterationRecord>& records) {
   nlohmann::json history = nlohmann::json::array();
-  for (const IterationRecord& r : summary.history) {
+  for (const IterationRecord& r : records) {
     nlohmann::json h = {{"iteration", r.iteration}, {"objective", r.objective}, {"gradient_norm", r.gradient_norm},
                         {"forward_solves", r.forward_solves}};
     if (!std::isnan(r.parameter_error)) h["parameter_error"] = r.parameter_error;
     history.push_back(h);
   }
-  report.summary = {{"problem", problem.path},
-                    {"method", summary.method},
-                    {"converged", summary.converged()},
-                    {"status", to_string(summary.termination)},
-                    {"message", summary.message},
-                    {"iterations", summary.iterations},
-                    {"initial_objective", summary.initial_objective},
-                    {"final_objective", summary.final_objective},
-                    {"forward_solves", summary.forward_solves},
-                    {"linear_solves", summary.linear_solves},
-                    {"failed_evaluations", summary.failed_evaluations},
-                    {"time_s", summary.seconds},
-                    {"history", history}};
-  return report;
+  return history;
+}
+
+// JSON has no NaN: unknown numbers are null.
+nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+
+}  // namespace
+
+nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summary) {
+  return {{"problem", problem.path},
+          {"method", summary.method},
+          {"converged", summary.converged()},
+          {"status", to_string(summary.termination)},
+          {"message", summary.message},
+          {"iterations", summary.iterations},
+          {"initial_objective", summary.initial_objective},
+          {"final_objective", summary.final_objective},
+          {"forward_solves", summary.forward_solves},
+          {"linear_solves", summary.linear_solves},
+          {"failed_evaluations", summary.failed_evaluations},
+          {"time_s", summary.seconds},
+          {"history", history_json(summary.history)}};
+}
+
+nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summary) {
+  nlohmann::json kkt = nlohmann::json::array(), history = nlohmann::json::array();
+  for (const KktRecord& r : summary.kkt_history) {
+    nlohmann::json k = {{"iteration", r.iteration},
+                        {"objective", r.objective},
+                        {"primal_infeasibility", r.primal_infeasibility},
+                        {"dual_infeasibility", r.dual_infeasibility},
+                        {"complementarity", r.complementarity},
+                        {"kkt_error", r.kkt_error()},
+                        {"mu", r.mu},
+                        {"parameter_error", number(r.parameter_error)},
+                        {"guard_min_mac", number(r.min_mac)}};
+    kkt.push_back(k);
+    // The common history: the full-space "gradient norm" is the dual infeasibility (the
+    // gradient of the Lagrangian), iterations numbered after the globalization.
+    history.push_back({{"iteration", summary.globalization_iterations + r.iteration},
+                       {"objective", r.objective},
+                       {"gradient_norm", r.dual_infeasibility},
+                       {"phase", "newton"}});
+  }
+  nlohmann::json global = history_json(summary.globalization_history);
+  for (auto& h : global) h["phase"] = "globalization";
+  global.insert(global.end(), history.begin(), history.end());
+  nlohmann::json check = {{"passed", summary.mode_check.passed},
+                          {"reason", summary.mode_check.reason},
+                          {"mac", summary.mode_check.mac},
+                          {"eigenvalue_error", summary.mode_check.eigenvalue_error}};
+  return {{"problem", problem.path},
+          {"method", "fullspace"},
+          {"converged", summary.converged()},
+          {"status", to_string(summary.status)},
+          {"message", summary.message},
+          {"ipopt_status", summary.ipopt_status},
+          {"iterations", summary.iterations},
+          {"globalization_iterations", summary.globalization_iterations},
+          {"restarts", summary.restarts},
+          {"initial_objective", summary.initial_objective},
+          {"final_objective", number(summary.final_objective)},
+          {"forward_solves", summary.forward_solves},
+          {"kkt_solves", summary.kkt_solves},
+          {"unknowns", summary.num_unknowns},
+          {"constraints", summary.num_constraints},
+          {"time_s", summary.seconds},
+          {"ipopt_time_s", summary.ipopt_seconds},
+          {"guard_time_s", summary.guard_seconds},
+          {"convergence_order", number(summary.convergence_order)},
+          {"mode_check", check},
+          {"kkt_history", kkt},
+          {"history", global}};
 }
 
 }  // namespace modalcal::cli

@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "modalcal/fullspace.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
 
@@ -20,7 +21,13 @@ struct CalibrationReport {
   nlohmann::json json() const;
 };
 
-/// Evaluates the objective at the summary's final parameters to tabulate the modes.
-CalibrationReport make_report(Objective& objective, const ReducedSummary& summary);
+/// Parameter and mode tables; evaluates the objective at `final` to tabulate the modes (no mode
+/// table when `final` is empty). `summary` is left for the method to fill.
+CalibrationReport make_report(Objective& objective, const Vector& initial, const Vector& final);
+
+/// The method's part of the JSON: converged, status, iterations, history, counts, time.
+nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summary);
+/// Same keys, plus mode_check, kkt_history, convergence_order and ipopt_status.
+nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summary);
 
 }  // namespace modalcal::cli

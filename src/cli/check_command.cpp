@@ -3,10 +3,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "modalcal/fullspace.hpp"
 #include "modalcal/gradient_check.hpp"
 
 namespace modalcal::cli {
@@ -19,6 +21,8 @@ struct CheckArgs {
   double step = 1e-5;
   double tolerance = 1e-4;
   double refine = 0;
+  double fullspace_step = 1e-6;
+  bool reduced_only = false;
 };
 
 int run_check(const CheckArgs& args) {
@@ -32,7 +36,18 @@ int run_check(const CheckArgs& args) {
   std::printf("reduced gradient (adjoint) vs central differences, relative step %.1e, at %s\n", args.step,
               args.params.source.c_str());
   std::fputs(check.report.c_str(), stdout);
-  return check.ok ? 0 : 1;
+  bool ok = check.ok;
+  if (!args.reduced_only) {
+    const FullSpaceDerivativeCheck full = check_fullspace_derivatives(objective, p, args.fullspace_step);
+    std::printf("\nfull-space derivatives vs central differences along random directions, relative step %.1e\n",
+                args.fullspace_step);
+    for (const std::string& line : full.lines) std::printf("  %s\n", line.c_str());
+    const double worst = std::max({full.gradient_error, full.jacobian_error, full.hessian_error});
+    std::printf("max relative error %.2e (tolerance %.1e): %s\n", worst, args.tolerance,
+                worst <= args.tolerance ? "OK" : "FAILED");
+    ok = ok && worst <= args.tolerance;
+  }
+  return ok ? 0 : 1;
 }
 
 }  // namespace
@@ -46,6 +61,9 @@ void register_check_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--step", args->step, "relative finite-difference step (default 1e-5)")->check(CLI::PositiveNumber);
   cmd->add_option("--tolerance", args->tolerance, "largest acceptable relative error (default 1e-4)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--fullspace-step", args->fullspace_step, "relative step of the full-space check (default 1e-6)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--reduced-only", args->reduced_only, "check only the reduced gradient");
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
   cmd->callback([args, exit_code] { *exit_code = run_check(*args); });
 }

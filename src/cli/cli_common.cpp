@@ -90,6 +90,12 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
 
 std::vector<std::string> method_names() { return {"reduced-lbfgs", "reduced-gauss-newton", "reduced-newton"}; }
 
+std::vector<std::string> calibration_method_names() {
+  std::vector<std::string> names = method_names();
+  names.insert(names.begin(), "fullspace");
+  return names;
+}
+
 ReducedOptions::Method parse_method(const std::string& name) {
   if (name == "reduced-lbfgs") return ReducedOptions::Method::Lbfgs;
   if (name == "reduced-gauss-newton") return ReducedOptions::Method::GaussNewton;

@@ -28,6 +28,8 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice);
 
 /// The reduced-space methods by their CLI names, and the reverse.
 std::vector<std::string> method_names();
+/// fullspace and the reduced-space methods.
+std::vector<std::string> calibration_method_names();
 ReducedOptions::Method parse_method(const std::string& name);
 
 /// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.

@@ -124,7 +124,8 @@ int run_starts(const StudyArgs& args) {
     const ReducedSummary s = minimize_reduced(objective, start, options);
     std::printf("\nstart x %g: %s\n", factor, s.BriefReport().c_str());
     if (s.final.size() != n) continue;
-    const CalibrationReport report = make_report(objective, s);
+    CalibrationReport report = make_report(objective, s.initial, s.final);
+    report.summary = summary_json(problem, s);
     std::fputs(report.text.c_str(), stdout);
     finals.push_back(s.final);
     objectives.push_back(s.final_objective);

@@ -1,0 +1,172 @@
+#pragma once
+/// \file fullspace.hpp
+/// Full-space calibration: eigenvectors, eigenvalues and parameters are all unknowns of one
+/// equality-constrained problem, solved by Ipopt's interior-point Newton method with the exact
+/// sparse constraint Jacobian and Lagrangian Hessian (the all-at-once approach SAND2015-11101
+/// names as future work; Biros & Ghattas, SISC 2005, for PDE-constrained optimization).
+///
+/// \f[ \min_{\tilde u_i, t_i, q}\; J \quad\text{s.t.}\quad
+///     r_i = \frac{D_i}{\bar m}\Big(\frac{K(p)}{\lambda_{m,i}} - t_i M(p)\Big)\tilde u_i = 0,\qquad
+///     n_i = \tfrac{n}{2}\Big(\frac{\tilde u_i^T M(p) \tilde u_i}{s_u^2} - 1\Big) = 0,\qquad
+///     \underline q \le q \le \overline q, \f]
+/// nondimensionalized so that every unknown and every constraint row is O(1): the eigenvalue as
+/// \f$t_i = \lambda_i / \lambda_{m,i}\f$, the mode as \f$\tilde u_i = s_u u_i\f$ with
+/// \f$s_u^2 = \mathrm{tr}\,M(p_0)\f$, the rows by the mean diagonal mass
+/// \f$\bar m = s_u^2 / n\f$ and the diagonal \f$D_i = \bar m\,(\mathrm{diag} K/\lambda_{m,i} + \mathrm{diag} M)^{-1}\f$
+/// (at p_0), the parameters in the optimizer's scaling q (log10 p, p / p_ref).
+/// In physical units (\f$\lambda \sim 10^8\f$ for kHz modes) Ipopt fails; see the field notes.
+///
+/// The main risk is converging to the wrong eigenpairs: nothing in the constraints says that
+/// \f$u_i\f$ is the i-th mode, and from far starts the iteration can slide onto higher modes or
+/// let two \f$u_i\f$ collapse onto one eigenpair. The driver therefore
+///   1. globalizes with reduced-space L-BFGS (always on the right modes: every evaluation pairs a
+///      forward solve) until the projected gradient has fallen by `globalization_reduction`;
+///   2. starts Ipopt from the forward solution there, signs aligned with the measured shapes,
+///      multipliers from the adjoint (\f$y_i = w_i\f$, \f$z_i = 2\eta_i\f$, scaled), warm started
+///      with a small barrier parameter;
+///   3. guards every iteration: a forward solve at the current p, paired as the reduced
+///      objective pairs, must have M-weighted MAC >= `guard_mac` with each \f$u_i\f$; if not,
+///      Ipopt is stopped and restarted from the forward solution at the last guarded point;
+///   4. verifies the end point against a forward solve (same modes, MAC >= `verify_mac`,
+///      eigenvalues within `verify_eigenvalue_tolerance`) and reports a run that fails this as not
+///      converged, whatever Ipopt said.
+///
+/// \code
+/// modalcal::Problem problem = modalcal::load_problem("problems/lfu/synthetic.yaml");
+/// modalcal::Objective objective(problem);
+/// modalcal::FullSpaceSummary s = modalcal::minimize_fullspace(objective, problem.initial_values(), {});
+/// std::cout << s.FullReport();
+/// \endcode
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modalcal/objective.hpp"
+#include "modalcal/reduced.hpp"
+
+namespace modalcal {
+
+struct FullSpaceOptions {
+  /// Ipopt iterations, over all restarts. Range: >= 1.
+  int max_iterations = 200;
+  /// Ipopt `tol`: the scaled KKT error (primal and dual infeasibility, complementarity) at
+  /// which it stops. Range: (0, 1).
+  double tolerance = 1e-10;
+  /// Barrier parameter Ipopt starts from (warm start). Range: > 0.
+  double mu_init = 1e-9;
+  enum class Hessian { Exact, LimitedMemory };
+  /// Exact Lagrangian Hessian (Newton, quadratic locally) or Ipopt's L-BFGS approximation.
+  Hessian hessian = Hessian::Exact;
+  /// Reduced L-BFGS iterations before the full-space Newton phase at most; 0 disables it.
+  /// Range: >= 0.
+  int globalization_iterations = 50;
+  /// The globalization stops once the projected gradient has fallen by this factor (or it has
+  /// converged). Range: (0, 1].
+  double globalization_reduction = 1e-2;
+  /// Forward solve and MAC check of every u_i at every Ipopt iteration.
+  bool mode_guard = true;
+  /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).
+  double guard_mac = 0.8;
+  /// Restarts from the last guarded point after the guard fires. Range: >= 0.
+  int max_restarts = 3;
+  /// Final check: M-weighted MAC of u_i with the paired forward mode. Range: (0, 1).
+  double verify_mac = 0.99;
+  /// Final check: relative eigenvalue difference with the paired forward mode. Range: (0, 1).
+  double verify_eigenvalue_tolerance = 1e-6;
+  /// Override of every parameter's scaling (the problem file's when unset).
+  std::optional<Scaling> scaling;
+  /// Ipopt's own second-order derivative test at the starting point (slow beyond a few hundred
+  /// unknowns; check-derivatives is the scalable check).
+  bool ipopt_derivative_test = false;
+  /// Ipopt print level (0 silent, 5 its usual table). Range: [0, 12].
+  int print_level = 0;
+  /// Called after every Ipopt iteration (progress display).
+  std::function<void(const struct KktRecord&)> progress;
+  bool IsValid(std::string* error) const;
+};
+
+/// One Ipopt iteration.
+struct KktRecord {
+  int iteration = 0;             ///< cumulative over restarts
+  double objective = 0;
+  double primal_infeasibility = 0;  ///< max |constraint| (scaled rows)
+  double dual_infeasibility = 0;    ///< max |gradient of the Lagrangian|
+  double complementarity = 0;       ///< max |z (x - bound)|, bounds on p only
+  double mu = 0;                    ///< barrier parameter
+  /// KKT error max(primal, dual, complementarity).
+  double kkt_error() const;
+  double parameter_error = NAN;     ///< max_j |p_j / p_true_j - 1| when the truth is known
+  double min_mac = NAN;             ///< the guard's smallest MAC (NaN when not guarded)
+  Vector p;
+};
+
+/// The end-of-run check of the eigenpairs against a forward solve at the final parameters.
+struct ModeCheck {
+  bool passed = false;
+  std::string reason;            ///< why not, naming the measured mode
+  std::vector<double> mac;       ///< per full-space mode, M-weighted, with its paired forward mode
+  std::vector<double> eigenvalue_error;  ///< relative, same pairing
+};
+
+enum class FullSpaceStatus {
+  Converged,           ///< Ipopt converged and the mode check passed
+  WrongModes,          ///< Ipopt converged, but not on the paired modes
+  MaxIterations,
+  Failed,              ///< Ipopt failed (restoration, too few degrees of freedom, ...)
+  ForwardSolveFailed,  ///< the start could not be evaluated
+};
+std::string to_string(FullSpaceStatus status);
+
+struct FullSpaceSummary {
+  FullSpaceStatus status = FullSpaceStatus::ForwardSolveFailed;
+  std::string message;
+  std::string ipopt_status;      ///< Ipopt's return status of the last attempt
+  Vector initial, final;         ///< physical parameters
+  double initial_objective = NAN, final_objective = NAN;
+  int iterations = 0;            ///< Ipopt iterations over all attempts
+  int globalization_iterations = 0;
+  int restarts = 0;
+  int forward_solves = 0;        ///< reduced phase, starts, guard and final check
+  int kkt_solves = 0;            ///< Hessian evaluations = Newton (KKT) systems
+  int num_unknowns = 0, num_constraints = 0;
+  double seconds = 0, ipopt_seconds = 0, guard_seconds = 0;
+  std::vector<IterationRecord> globalization_history;
+  std::vector<KktRecord> kkt_history;
+  /// Estimated order q of e_{k+1} ~ e_k^q from the primal-dual infeasibility of the last
+  /// iterations above the noise floor; NaN when too few.
+  double convergence_order = NAN;
+  ModeCheck mode_check;
+  /// Final multipliers, physical: w_i of (K - lambda_i M)u_i = 0 (columns) and eta_i of
+  /// u_i^T M u_i = 1, comparable with Evaluation::adjoint.
+  Matrix multipliers;
+  Vector normalization_multipliers;
+  /// Final eigenpairs (physical), one per full-space mode.
+  Vector eigenvalues;
+  Matrix modes;
+  std::vector<int> measured_of_mode;  ///< measured mode of each full-space mode
+  bool converged() const { return status == FullSpaceStatus::Converged; }
+  std::string BriefReport() const;
+  std::string FullReport() const;
+};
+
+FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
+
+/// Order q of e_{k+1} ~ C e_k^q, \f$ q = \log(e_{k+1}/e_k) / \log(e_k/e_{k-1}) \f$, from the last
+/// three decreasing errors that lie above both `floor` and 10 times the smallest error (the
+/// rounding floor the run reached, where the rate is no longer visible); NaN if there are none.
+double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
+
+/// Directional finite-difference check of the full-space derivatives at the forward solution
+/// of p (multipliers random): per block of unknowns (modes, eigenvalues, parameters), the
+/// relative error of J d, H d and the objective gradient against central differences of the
+/// constraints, of the Lagrangian gradient and of the objective.
+struct FullSpaceDerivativeCheck {
+  double gradient_error = 0, jacobian_error = 0, hessian_error = 0;
+  std::vector<std::string> lines;  ///< one per block and quantity, for printing
+};
+FullSpaceDerivativeCheck check_fullspace_derivatives(Objective& objective, const Vector& p, double relative_step = 1e-6,
+                                                     unsigned seed = 1);
+
+}  // namespace modalcal

@@ -1,0 +1,100 @@
+#pragma once
+// Internal: the full-space calibration problem, independent of any optimizer. Unknowns
+// x = (u~_1 .. u~_l, t_1 .. t_l, q), constraints c = (r_1 .. r_l, n_1 .. n_l), nondimensionalized
+// as documented in include/modalcal/fullspace.hpp. The Ipopt adapter only maps this class.
+
+#include <memory>
+#include <vector>
+
+#include "fullspace/sparse_layout.hpp"
+#include "modalcal/objective.hpp"
+#include "objective/shape_misfit.hpp"
+
+namespace modalcal::detail {
+
+class FullSpaceProblem {
+ public:
+  /// One full-space mode per measured mode with a nonzero weight. `p_scale` fixes the
+  /// nondimensionalization (s_u^2 = tr M(p_scale)).
+  FullSpaceProblem(Objective& objective, const ParameterScaling& scaling, const Vector& p_scale);
+
+  int num_modes() const { return static_cast<int>(measured_.size()); }
+  int num_dofs() const { return n_; }
+  int num_parameters() const { return np_; }
+  int num_variables() const { return num_modes() * (n_ + 1) + np_; }
+  int num_constraints() const { return num_modes() * (n_ + 1); }
+  /// Measured mode (index into Problem::measured) of full-space mode i.
+  int measured_of(int i) const { return measured_[i]; }
+  const std::vector<int>& measured_modes() const { return measured_; }
+
+  /// x from physical modes (columns, mass-normalized), eigenvalues and parameters.
+  Vector pack(const Matrix& modes, const Vector& eigenvalues, const Vector& p) const;
+  /// Physical modes, eigenvalues and parameters of x.
+  void unpack(const double* x, Matrix* modes, Vector* eigenvalues, Vector* p) const;
+  /// Constraint multipliers from the physical ones (w_i of (K - lambda_i M) u_i = 0 and eta_i of
+  /// u_i^T M u_i - 1 = 0), and back.
+  Vector pack_multipliers(const Matrix& w, const Vector& eta) const;
+  void unpack_multipliers(const double* y, Matrix* w, Vector* eta) const;
+  /// Bounds of the unknowns (only q is bounded; +-1e20 stands for none, as in Ipopt).
+  void bounds(double* lower, double* upper) const;
+
+  double objective(const double* x);
+  void objective_gradient(const double* x, double* gradient);
+  void constraints(const double* x, double* c);
+  const SparseLayout& jacobian_layout() const { return jacobian_; }
+  void jacobian_values(const double* x, double* values);
+  const SparseLayout& hessian_layout() const { return hessian_; }
+  /// Lower triangle of sigma * Hessian(objective) + sum_k y_k Hessian(c_k).
+  void hessian_values(const double* x, double sigma, const double* y, double* values);
+
+  /// Sign (+1 or -1) that aligns a physical mode with the measured shape of full-space mode i at
+  /// the sensors (+1 without a shape).
+  double shape_sign(int i, const Vector& u) const;
+  /// M(p(x)), for mass-weighted MAC checks.
+  const SparseMatrix& mass_matrix(const double* x);
+  const ParameterScaling& scaling() const { return scaling_; }
+
+ private:
+  struct ModeBlocks {  // where each block of mode i lives in the value arrays
+    SparseLayout::Block r_u, r_t, n_u, n_q;
+    std::vector<SparseLayout::Block> r_q;
+    SparseLayout::Block h_uu, h_tu, h_tt, h_qt;
+    std::vector<SparseLayout::Block> h_qu;
+  };
+  void update(const double* x);  // K, M and their parameter derivatives at p(q)
+  Eigen::Map<const Vector> mode(const double* x, int i) const { return Eigen::Map<const Vector>(x + i * n_, n_); }
+  double eigenvalue_ratio(const double* x, int i) const { return x[num_modes() * n_ + i]; }
+  Eigen::Map<const Vector> scaled_parameters(const double* x) const {
+    return Eigen::Map<const Vector>(x + num_modes() * (n_ + 1), np_);
+  }
+  void regularization(const Vector& q, double* value, Vector* gradient, Vector* hessian) const;
+
+  Objective& objective_;
+  const Problem& problem_;
+  const ParametricSystem& system_;
+  ParameterScaling scaling_;
+  int n_ = 0, np_ = 0;
+  std::vector<int> measured_;          // measured mode of each full-space mode
+  Vector lambda_ref_;                  // measured eigenvalue of each full-space mode
+  std::vector<std::unique_ptr<ShapeMisfit>> shape_;  // null without a measured shape
+  double mass_scale_ = 1, mode_scale_ = 1;  // m_bar and s_u
+  // n_s: the normalization row times the number of DOFs has entries of the size of the r rows.
+  double normalization_scale_ = 1;
+  std::vector<Vector> row_scale_;       // D_i: per mode, per row of r_i
+  SparseMatrix sensors_;
+  std::vector<int> sensor_dofs_;       // free DOFs the sensors read
+  std::vector<std::vector<int>> parameter_rows_;  // DOFs K_j, M_j touch, per parameter
+  SparseMatrix uu_pattern_;            // lower triangle of pattern(K) + sensor block
+  std::vector<int> uu_from_pattern_;   // per entry of pattern(K): position in uu_pattern_, or -1
+  Matrix uu_sensor_positions_;         // position of (sensor dof a, sensor dof b), a >= b
+  SparseLayout jacobian_, hessian_;
+  std::vector<ModeBlocks> blocks_;
+  SparseLayout::Block h_qq_;
+  // Cached at p(q) of the last update.
+  Vector cached_q_;
+  Vector p_, dp_, d2p_;
+  SparseMatrix K_, M_;
+  std::vector<SparseMatrix> dK_, dM_;
+};
+
+}  // namespace modalcal::detail

@@ -1,0 +1,93 @@
+// Options validation, outcome names, convergence-order estimate and reports of the full-space
+// method.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "modalcal/fullspace.hpp"
+
+namespace modalcal {
+
+std::string to_string(FullSpaceStatus status) {
+  switch (status) {
+    case FullSpaceStatus::Converged: return "Converged";
+    case FullSpaceStatus::WrongModes: return "WrongModes";
+    case FullSpaceStatus::MaxIterations: return "MaxIterations";
+    case FullSpaceStatus::Failed: return "Failed";
+    case FullSpaceStatus::ForwardSolveFailed: return "ForwardSolveFailed";
+  }
+  return "?";
+}
+
+double KktRecord::kkt_error() const { return std::max({primal_infeasibility, dual_infeasibility, complementarity}); }
+
+bool FullSpaceOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (max_iterations < 1) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 1");
+  if (!(tolerance > 0 && tolerance < 1)) return bad("tolerance = " + std::to_string(tolerance) + ": must be in (0, 1)");
+  if (!(mu_init > 0)) return bad("mu_init = " + std::to_string(mu_init) + ": must be > 0");
+  if (globalization_iterations < 0)
+    return bad("globalization_iterations = " + std::to_string(globalization_iterations) + ": must be >= 0");
+  if (!(globalization_reduction > 0 && globalization_reduction <= 1))
+    return bad("globalization_reduction = " + std::to_string(globalization_reduction) + ": must be in (0, 1]");
+  if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + std::to_string(guard_mac) + ": must be in (0, 1)");
+  if (max_restarts < 0) return bad("max_restarts = " + std::to_string(max_restarts) + ": must be >= 0");
+  if (!(verify_mac > 0 && verify_mac < 1)) return bad("verify_mac = " + std::to_string(verify_mac) + ": must be in (0, 1)");
+  if (!(verify_eigenvalue_tolerance > 0 && verify_eigenvalue_tolerance < 1))
+    return bad("verify_eigenvalue_tolerance = " + std::to_string(verify_eigenvalue_tolerance) + ": must be in (0, 1)");
+  if (print_level < 0 || print_level > 12)
+    return bad("print_level = " + std::to_string(print_level) + ": must be in [0, 12]");
+  return true;
+}
+
+double estimate_convergence_order(const std::vector<double>& errors, double floor) {
+  std::vector<double> e;
+  for (double v : errors)
+    if (v > 0 && std::isfinite(v)) e.push_back(v);
+  if (e.size() < 3) return NAN;
+  // The last iterate usually sits on the rounding floor it reached; errors within 10x of that
+  // floor (or of `floor`) say nothing about the rate.
+  const double reached = *std::min_element(e.begin(), e.end());
+  const double limit = std::max(floor, 10 * reached);
+  for (size_t k = e.size() - 1; k >= 2; --k) {
+    const double a = e[k - 2], b = e[k - 1], c = e[k];
+    if (c <= limit || !(b < a && c < b)) continue;
+    return std::log(c / b) / std::log(b / a);
+  }
+  return NAN;
+}
+
+std::string FullSpaceSummary::BriefReport() const {
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "fullspace: %s (Ipopt %s, mode check %s) after %d Ipopt iterations (%d restarts) and %d globalization "
+                "iterations, objective %.6e -> %.6e, %d forward solves, %d KKT solves, order %.2f, %.2f s",
+                to_string(status).c_str(), ipopt_status.c_str(), mode_check.passed ? "passed" : "failed", iterations,
+                restarts, globalization_iterations, initial_objective, final_objective, forward_solves, kkt_solves,
+                convergence_order, seconds);
+  return line;
+}
+
+std::string FullSpaceSummary::FullReport() const {
+  std::string out = BriefReport() + "\n" + message + "\n";
+  if (!mode_check.passed && !mode_check.reason.empty()) out += "mode check: " + mode_check.reason + "\n";
+  char line[240];
+  std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Ipopt %.2f s, mode guard %.2f s, total %.2f s\n",
+                num_unknowns, num_constraints, ipopt_seconds, guard_seconds, seconds);
+  out += line;
+  std::snprintf(line, sizeof line, "%5s %14s %11s %11s %11s %10s %12s %8s\n", "iter", "objective", "inf_pr", "inf_du",
+                "compl", "mu", "param error", "min MAC");
+  out += line;
+  for (const KktRecord& r : kkt_history) {
+    std::snprintf(line, sizeof line, "%5d %14.6e %11.3e %11.3e %11.3e %10.2e %12.4e %8.5f\n", r.iteration, r.objective,
+                  r.primal_infeasibility, r.dual_infeasibility, r.complementarity, r.mu, r.parameter_error, r.min_mac);
+    out += line;
+  }
+  return out;
+}
+
+}  // namespace modalcal

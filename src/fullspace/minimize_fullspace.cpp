@@ -1,0 +1,228 @@
+// The full-space driver: globalization, start, guarded Ipopt Newton phase with restarts, and
+// the final check against a forward solve (see include/modalcal/fullspace.hpp).
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "fullspace/fullspace_problem.hpp"
+#include "fullspace/ipopt/ipopt_run.hpp"
+#include "modalcal/fullspace.hpp"
+
+namespace modalcal {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// (a^T M b)^2 / ((a^T M a)(b^T M b)): the MAC in the energy inner product, which unlike the
+// plain MAC separates modes that look alike at a few DOFs.
+double mass_mac(const SparseMatrix& M, const Vector& a, const Vector& b) {
+  const Vector Mb = M * b;
+  const double ab = a.dot(Mb), aa = a.dot(M * a), bb = b.dot(Mb);
+  return (aa > 0 && bb > 0) ? ab * ab / (aa * bb) : 0.0;
+}
+
+std::optional<Vector> truth_of(const Problem& problem) {
+  Vector truth(problem.parameters.size());
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    if (!problem.parameters[j].truth) return std::nullopt;
+    truth[j] = *problem.parameters[j].truth;
+  }
+  return truth;
+}
+
+double parameter_error(const std::optional<Vector>& truth, const Vector& p) {
+  if (!truth) return NAN;
+  return (p.array() / truth->array() - 1).abs().maxCoeff();
+}
+
+// Compares the full-space eigenpairs with a forward solve at their p, paired as the reduced
+// objective pairs.
+ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const Vector& x, const Evaluation& forward,
+                      const FullSpaceOptions& options) {
+  ModeCheck check;
+  if (!forward.ok) {
+    check.reason = "forward solve at the final parameters failed: " + forward.message;
+    return check;
+  }
+  Matrix U;
+  Vector lambda, p;
+  fp.unpack(x.data(), &U, &lambda, &p);
+  const SparseMatrix& M = fp.mass_matrix(x.data());
+  check.passed = true;
+  for (int i = 0; i < fp.num_modes(); ++i) {
+    const int m = fp.measured_of(i);
+    const int k = forward.pairs[m].model;
+    const double mac = mass_mac(M, U.col(i), forward.modal.modes.col(k));
+    const double error = std::abs(lambda[i] / forward.modal.eigenvalues[k] - 1);
+    check.mac.push_back(mac);
+    check.eigenvalue_error.push_back(error);
+    if (check.passed && (mac < options.verify_mac || error > options.verify_eigenvalue_tolerance)) {
+      check.passed = false;
+      const MeasuredMode& mm = objective.problem().measured[m];
+      check.reason = "measured mode " + std::to_string(m + 1) + (mm.label.empty() ? "" : " ('" + mm.label + "')") +
+                     ": the full-space eigenpair (" + std::to_string(frequency_hz(lambda[i])) +
+                     " Hz) is not model mode " + std::to_string(k + 1) + " of the forward solve (" +
+                     std::to_string(frequency_hz(forward.modal.eigenvalues[k])) + " Hz): MAC " + std::to_string(mac) +
+                     ", eigenvalue difference " + std::to_string(error);
+    }
+  }
+  return check;
+}
+
+}  // namespace
+
+FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("FullSpaceOptions: " + error);
+  const Clock::time_point start = Clock::now();
+  const Problem& problem = objective.problem();
+  const int forward_solves_before = objective.forward_solves();
+  const std::optional<Vector> truth = truth_of(problem);
+  FullSpaceSummary summary;
+  summary.initial = summary.final = p0;
+  auto finish = [&](FullSpaceStatus status, const std::string& message) {
+    summary.status = status;
+    if (summary.message.empty()) summary.message = message;
+    summary.forward_solves = objective.forward_solves() - forward_solves_before;
+    summary.seconds = seconds_since(start);
+    return summary;
+  };
+
+  const Evaluation initial = objective.evaluate(p0, Need::Value);
+  if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
+  summary.initial_objective = summary.final_objective = initial.value;
+
+  // 1. Globalization: reduced L-BFGS always tracks the paired modes.
+  auto globalize = [&](const Vector& from, int iterations) {
+    ReducedOptions reduced;
+    reduced.max_iterations = iterations;
+    reduced.relative_gradient_tolerance = options.globalization_reduction;
+    reduced.scaling = options.scaling;
+    const ReducedSummary run = minimize_reduced(objective, from, reduced);
+    for (IterationRecord record : run.history) {
+      if (!summary.globalization_history.empty() && record.iteration == 0) continue;
+      record.iteration += summary.globalization_iterations;
+      summary.globalization_history.push_back(record);
+    }
+    summary.globalization_iterations += run.iterations;
+    return run.final;
+  };
+  Vector p = options.globalization_iterations > 0 ? globalize(p0, options.globalization_iterations) : p0;
+
+  const ParameterScaling scaling = options.scaling ? ParameterScaling(problem.parameters, *options.scaling)
+                                                   : ParameterScaling(problem.parameters);
+  detail::FullSpaceProblem fp(objective, scaling, p);
+  summary.num_unknowns = fp.num_variables();
+  summary.num_constraints = fp.num_constraints();
+
+  detail::IpoptRunResult run;
+  bool converged_run = false;
+  for (;;) {
+    // 2. Start from the forward solution at p, signs aligned, multipliers from the adjoint.
+    const Evaluation e = objective.evaluate(p, Need::Gradient);
+    if (!e.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "start of the Newton phase: " + e.message);
+    Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
+    Vector lambda(fp.num_modes()), eta(fp.num_modes());
+    for (int i = 0; i < fp.num_modes(); ++i) {
+      const int m = fp.measured_of(i);
+      const int k = e.pairs[m].model;
+      const double sign = fp.shape_sign(i, e.modal.modes.col(k));
+      U.col(i) = sign * e.modal.modes.col(k);
+      W.col(i) = sign * e.adjoint.col(m);
+      lambda[i] = e.modal.eigenvalues[k];
+      eta[i] = e.adjoint_eta[m];
+    }
+    const Vector x0 = fp.pack(U, lambda, p), y0 = fp.pack_multipliers(W, eta);
+
+    // 3. Newton phase, guarded.
+    Vector last_good = p;
+    bool guard_fired = false;
+    const int offset = summary.iterations;
+    detail::IpoptCallback callback = [&](const detail::IpoptIteration& info, const double* x) {
+      KktRecord record;
+      record.iteration = offset + info.iteration;
+      record.objective = info.objective;
+      record.primal_infeasibility = info.primal_infeasibility;
+      record.dual_infeasibility = info.dual_infeasibility;
+      record.complementarity = info.complementarity;
+      record.mu = info.mu;
+      record.p = scaling.to_physical(Eigen::Map<const Vector>(x + fp.num_variables() - fp.num_parameters(),
+                                                              fp.num_parameters()));
+      record.parameter_error = parameter_error(truth, record.p);
+      if (options.mode_guard) {
+        const Clock::time_point guard_start = Clock::now();
+        const Evaluation forward = objective.evaluate(record.p, Need::Value);
+        double min_mac = 0;
+        if (forward.ok) {
+          const SparseMatrix& M = fp.mass_matrix(x);
+          min_mac = 1;
+          for (int i = 0; i < fp.num_modes(); ++i) {
+            const Eigen::Map<const Vector> u(x + i * fp.num_dofs(), fp.num_dofs());
+            min_mac = std::min(min_mac, mass_mac(M, u, forward.modal.modes.col(forward.pairs[fp.measured_of(i)].model)));
+          }
+        }
+        record.min_mac = min_mac;
+        summary.guard_seconds += seconds_since(guard_start);
+        if (min_mac < options.guard_mac) guard_fired = true;
+        else last_good = record.p;
+      }
+      summary.kkt_history.push_back(record);
+      if (options.progress) options.progress(record);
+      return !guard_fired;
+    };
+    detail::IpoptRunOptions ipopt;
+    ipopt.max_iterations = std::max(1, options.max_iterations - summary.iterations);
+    ipopt.tolerance = options.tolerance;
+    ipopt.mu_init = options.mu_init;
+    ipopt.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
+    ipopt.derivative_test = options.ipopt_derivative_test;
+    ipopt.print_level = options.print_level;
+    const Clock::time_point ipopt_start = Clock::now();
+    run = detail::run_ipopt(fp, x0, y0, ipopt, callback);
+    summary.ipopt_seconds += seconds_since(ipopt_start);
+    summary.iterations += run.iterations;
+    summary.kkt_solves += run.hessian_evaluations;
+    summary.ipopt_status = run.status;
+    if (!(guard_fired && run.stopped_by_callback)) {
+      converged_run = run.solved;
+      break;
+    }
+    // The iterate left its modes: back to the last guarded point, globalize further, restart.
+    if (summary.restarts >= options.max_restarts || summary.iterations >= options.max_iterations) {
+      summary.final = last_good;
+      summary.final_objective = objective.evaluate(last_good, Need::Value).value;
+      return finish(FullSpaceStatus::WrongModes,
+                    "the mode guard fired " + std::to_string(summary.restarts + 1) +
+                        " times (an eigenpair left its measured mode); restarts exhausted");
+    }
+    ++summary.restarts;
+    p = globalize(last_good, std::max(options.globalization_iterations, 10));
+  }
+
+  // 4. Verify against a forward solve at the final parameters.
+  Matrix U;
+  Vector lambda;
+  fp.unpack(run.x.data(), &U, &lambda, &summary.final);
+  const Evaluation final_forward = objective.evaluate(summary.final, Need::Value);
+  summary.mode_check = check_modes(objective, fp, run.x, final_forward, options);
+  summary.final_objective = final_forward.ok ? final_forward.value : NAN;
+  summary.eigenvalues = lambda;
+  summary.modes = U;
+  summary.measured_of_mode = fp.measured_modes();
+  fp.unpack_multipliers(run.y.data(), &summary.multipliers, &summary.normalization_multipliers);
+  std::vector<double> errors;
+  for (const KktRecord& r : summary.kkt_history) errors.push_back(std::max(r.primal_infeasibility, r.dual_infeasibility));
+  summary.convergence_order = estimate_convergence_order(errors);
+
+  if (converged_run && summary.mode_check.passed) return finish(FullSpaceStatus::Converged, "Ipopt: " + run.status);
+  if (converged_run) return finish(FullSpaceStatus::WrongModes, summary.mode_check.reason);
+  if (run.max_iterations) return finish(FullSpaceStatus::MaxIterations, "Ipopt: " + run.status);
+  return finish(FullSpaceStatus::Failed, run.message);
+}
+
+}  // namespace modalcal
