@@ -4,6 +4,7 @@
 // wrong modes.
 
 #include <cmath>
+#include <sstream>
 
 #include "fullspace/fullspace_problem.hpp"
 #include "modalcal/fullspace.hpp"
@@ -17,6 +18,23 @@ using testing::kEveryParameterKindModel;
 using testing::WriteTempFile;
 
 Problem EveryKind() { return load_problem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
+
+// The same model calibrated for the parameters its six modes identify well (E, nu, G, the joint,
+// the point mass): the others are left at their nominal values, and the synthetic modes are
+// computed from the truth of the remaining ones.
+Problem Identifiable() {
+  std::string text = kEveryParameterKindModel, kept;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    bool drop = false;
+    for (const char* name : {"  K:", "  rho:", "  kscale:", "  mscale:", "  krz:", "  spring:", "  inertia:"})
+      drop = drop || (line.rfind(name, 0) == 0 && line.find("targets") != std::string::npos);
+    if (!drop) kept += line + "\n";
+  }
+  return load_problem(WriteTempFile("identifiable.yaml", kept));
+}
+
+double MaxRelativeError(const Vector& p, const Vector& truth) { return (p.array() / truth.array() - 1).abs().maxCoeff(); }
 
 TEST(FullSpace, DerivativesMatchCentralDifferencesForEveryParameterKind) {
   const Problem problem = EveryKind();
@@ -73,6 +91,80 @@ TEST(FullSpace, AdjointVariablesAreTheMultipliersAndGiveTheReducedGradient) {
   const Vector reduced_in_q = e.gradient.cwiseProduct(scaling.first_derivative(scaling.to_scaled(p)));
   for (int j = 0; j < fp.num_parameters(); ++j)
     EXPECT_CLOSE(lagrangian[l * (n + 1) + j], reduced_in_q[j], 1e-6) << problem.parameters[j].name;
+}
+
+TEST(FullSpace, RecoversTheTruthFromAFarStartAndAgreesWithTheReducedSpace) {
+  const Problem problem = Identifiable();
+  ASSERT_EQ(problem.parameters.size(), 5u);
+  // About 2x off in every parameter (nu clipped to its bound); from the low side this model has a
+  // local minimum with a nearly free joint, which both methods find alike.
+  const Vector start = problem.initial_values() * 2.0;
+  Objective objective(problem);
+  const FullSpaceSummary full = minimize_fullspace(objective, start, {});
+  ASSERT_TRUE(full.converged()) << full.FullReport();
+  EXPECT_TRUE(full.mode_check.passed) << full.mode_check.reason;
+  EXPECT_LT(MaxRelativeError(full.final, problem.truth_values()), 1e-7) << full.FullReport();
+  EXPECT_LE(full.iterations, 20) << full.FullReport();
+  ASSERT_FALSE(full.kkt_history.empty());
+  const KktRecord& last = full.kkt_history.back();
+  EXPECT_LT(std::max(last.primal_infeasibility, last.dual_infeasibility), 1e-9) << full.FullReport();
+
+  Objective reduced_objective(problem);
+  ReducedOptions options;
+  options.gradient_tolerance = 1e-9;
+  options.max_iterations = 300;
+  const ReducedSummary reduced = minimize_reduced(reduced_objective, start, options);
+  EXPECT_LT(MaxRelativeError(full.final, reduced.final), 1e-6) << reduced.FullReport();
+  // The final full-space multipliers are the adjoint variables at the solution.
+  const Evaluation e = objective.evaluate(full.final, Need::Gradient);
+  ASSERT_TRUE(e.ok);
+  for (int i = 0; i < static_cast<int>(full.measured_of_mode.size()); ++i) {
+    const Vector w = e.adjoint.col(full.measured_of_mode[i]);
+    const Vector y = full.multipliers.col(i);
+    const double sign = w.dot(y) < 0 ? -1 : 1;  // a mode's sign is arbitrary, and its multiplier follows it
+    EXPECT_LT((sign * y - w).norm(), 1e-3 * w.norm() + 1e-12) << "mode " << i;
+  }
+}
+
+TEST(FullSpace, UnguardedNewtonFindsWrongModesWhichTheFinalCheckCatchesAndTheSafeguardsAvoid) {
+  // From 10x-low starts, Newton on the full KKT system without globalization or guard slides
+  // onto other eigenpairs of this model; the run must not call that converged.
+  const Problem problem = Identifiable();
+  const Vector start = problem.initial_values() * 0.1;
+  Objective naive_objective(problem);
+  FullSpaceOptions naive;
+  naive.globalization_iterations = 0;
+  naive.mode_guard = false;
+  const FullSpaceSummary wrong = minimize_fullspace(naive_objective, start, naive);
+  EXPECT_EQ(wrong.status, FullSpaceStatus::WrongModes) << wrong.FullReport();
+  EXPECT_FALSE(wrong.converged());
+  EXPECT_FALSE(wrong.mode_check.passed);
+  EXPECT_NE(wrong.mode_check.reason.find("measured mode"), std::string::npos) << wrong.mode_check.reason;
+
+  Objective objective(problem);
+  const FullSpaceSummary guarded = minimize_fullspace(objective, start, {});
+  EXPECT_TRUE(guarded.converged()) << guarded.FullReport();
+  EXPECT_TRUE(guarded.mode_check.passed) << guarded.mode_check.reason;
+  for (double mac : guarded.mode_check.mac) EXPECT_GT(mac, 0.99);
+}
+
+TEST(FullSpace, OptionsAreValidatedNamingTheField) {
+  FullSpaceOptions options;
+  std::string error;
+  EXPECT_TRUE(options.IsValid(&error));
+  options.guard_mac = 1.5;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("guard_mac"), std::string::npos) << error;
+  const Problem problem = Identifiable();
+  Objective objective(problem);
+  EXPECT_THROW(minimize_fullspace(objective, problem.initial_values(), options), std::invalid_argument);
+}
+
+TEST(FullSpace, ConvergenceOrderIsEstimatedAboveTheRoundingFloor) {
+  // e_{k+1} = e_k^2 until the floor 1e-15 is reached.
+  EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-4, 1e-8, 1e-15, 2e-15}), 2.0, 1e-9);
+  EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-3, 1e-4}), 1.0, 1e-9);
+  EXPECT_TRUE(std::isnan(estimate_convergence_order({1e-3, 1e-16})));
 }
 
 }  // namespace

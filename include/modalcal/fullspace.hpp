@@ -26,7 +26,10 @@
 ///      with a small barrier parameter;
 ///   3. guards every iteration: a forward solve at the current p, paired as the reduced
 ///      objective pairs, must have M-weighted MAC >= `guard_mac` with each \f$u_i\f$; if not,
-///      Ipopt is stopped and restarted from the forward solution at the last guarded point;
+///      Ipopt is stopped, the Newton direction in q is kept but the modes are not: a backtracking
+///      search on the reduced objective along the segment from the last guarded point to the
+///      current p picks the restart point (reduced L-BFGS if no point on it decreases J), and
+///      Ipopt restarts from the forward solution there. J decreases from restart to restart;
 ///   4. verifies the end point against a forward solve (same modes, MAC >= `verify_mac`,
 ///      eigenvalues within `verify_eigenvalue_tolerance`) and reports a run that fails this as not
 ///      converged, whatever Ipopt said.
@@ -69,8 +72,8 @@ struct FullSpaceOptions {
   bool mode_guard = true;
   /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).
   double guard_mac = 0.8;
-  /// Restarts from the last guarded point after the guard fires. Range: >= 0.
-  int max_restarts = 3;
+  /// Restarts after the guard fires. Range: >= 0.
+  int max_restarts = 10;
   /// Final check: M-weighted MAC of u_i with the paired forward mode. Range: (0, 1).
   double verify_mac = 0.99;
   /// Final check: relative eigenvalue difference with the paired forward mode. Range: (0, 1).
@@ -154,7 +157,7 @@ struct FullSpaceSummary {
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
 
 /// Order q of e_{k+1} ~ C e_k^q, \f$ q = \log(e_{k+1}/e_k) / \log(e_k/e_{k-1}) \f$, from the last
-/// three decreasing errors that lie above both `floor` and 10 times the smallest error (the
+/// three decreasing errors that lie above both `floor` and twice the smallest error (the
 /// rounding floor the run reached, where the rate is no longer visible); NaN if there are none.
 double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
 

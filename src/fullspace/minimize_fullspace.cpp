@@ -84,7 +84,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   const int forward_solves_before = objective.forward_solves();
   const std::optional<Vector> truth = truth_of(problem);
   FullSpaceSummary summary;
-  summary.initial = summary.final = p0;
+  // Ipopt keeps the parameters within their bounds: so does the start.
+  const Vector start_point = p0.cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
+  summary.initial = summary.final = start_point;
   auto finish = [&](FullSpaceStatus status, const std::string& message) {
     summary.status = status;
     if (summary.message.empty()) summary.message = message;
@@ -93,7 +95,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     return summary;
   };
 
-  const Evaluation initial = objective.evaluate(p0, Need::Value);
+  const Evaluation initial = objective.evaluate(start_point, Need::Value);
   if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
   summary.initial_objective = summary.final_objective = initial.value;
 
@@ -112,16 +114,29 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     summary.globalization_iterations += run.iterations;
     return run.final;
   };
-  Vector p = options.globalization_iterations > 0 ? globalize(p0, options.globalization_iterations) : p0;
+  Vector p = options.globalization_iterations > 0 ? globalize(start_point, options.globalization_iterations) : start_point;
 
   const ParameterScaling scaling = options.scaling ? ParameterScaling(problem.parameters, *options.scaling)
                                                    : ParameterScaling(problem.parameters);
+  // Restart point after the guard fired at `to`: the first of q(from) + a (q(to) - q(from)),
+  // a = 1, 1/2, ..., that decreases the reduced objective, else reduced L-BFGS from `from`.
+  auto backtrack = [&](const Vector& from, const Vector& to) {
+    const Evaluation at_from = objective.evaluate(from, Need::Value);
+    const Vector q0 = scaling.to_scaled(from), dq = scaling.to_scaled(to) - q0;
+    for (double a = 1; at_from.ok && a > 1e-3; a *= 0.5) {
+      const Vector trial = scaling.to_physical(q0 + a * dq);
+      const Evaluation e = objective.evaluate(trial, Need::Value);
+      if (e.ok && e.value < at_from.value) return trial;
+    }
+    return globalize(from, std::max(options.globalization_iterations, 10));
+  };
   detail::FullSpaceProblem fp(objective, scaling, p);
   summary.num_unknowns = fp.num_variables();
   summary.num_constraints = fp.num_constraints();
 
   detail::IpoptRunResult run;
   bool converged_run = false;
+  size_t attempt_start = 0;  // first KKT record of the last attempt
   for (;;) {
     // 2. Start from the forward solution at p, signs aligned, multipliers from the adjoint.
     const Evaluation e = objective.evaluate(p, Need::Gradient);
@@ -140,9 +155,10 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     const Vector x0 = fp.pack(U, lambda, p), y0 = fp.pack_multipliers(W, eta);
 
     // 3. Newton phase, guarded.
-    Vector last_good = p;
+    Vector last_good = p, fired_at = p;
     bool guard_fired = false;
     const int offset = summary.iterations;
+    attempt_start = summary.kkt_history.size();
     detail::IpoptCallback callback = [&](const detail::IpoptIteration& info, const double* x) {
       KktRecord record;
       record.iteration = offset + info.iteration;
@@ -168,8 +184,12 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
         }
         record.min_mac = min_mac;
         summary.guard_seconds += seconds_since(guard_start);
-        if (min_mac < options.guard_mac) guard_fired = true;
-        else last_good = record.p;
+        if (min_mac < options.guard_mac) {
+          guard_fired = true;
+          fired_at = record.p;
+        } else {
+          last_good = record.p;
+        }
       }
       summary.kkt_history.push_back(record);
       if (options.progress) options.progress(record);
@@ -192,7 +212,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
       converged_run = run.solved;
       break;
     }
-    // The iterate left its modes: back to the last guarded point, globalize further, restart.
+    // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).
     if (summary.restarts >= options.max_restarts || summary.iterations >= options.max_iterations) {
       summary.final = last_good;
       summary.final_objective = objective.evaluate(last_good, Need::Value).value;
@@ -201,7 +221,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
                         " times (an eigenpair left its measured mode); restarts exhausted");
     }
     ++summary.restarts;
-    p = globalize(last_good, std::max(options.globalization_iterations, 10));
+    p = backtrack(last_good, fired_at);
   }
 
   // 4. Verify against a forward solve at the final parameters.
@@ -216,7 +236,8 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   summary.measured_of_mode = fp.measured_modes();
   fp.unpack_multipliers(run.y.data(), &summary.multipliers, &summary.normalization_multipliers);
   std::vector<double> errors;
-  for (const KktRecord& r : summary.kkt_history) errors.push_back(std::max(r.primal_infeasibility, r.dual_infeasibility));
+  for (size_t k = attempt_start; k < summary.kkt_history.size(); ++k)  // the rate of the attempt that finished
+    errors.push_back(std::max(summary.kkt_history[k].primal_infeasibility, summary.kkt_history[k].dual_infeasibility));
   summary.convergence_order = estimate_convergence_order(errors);
 
   if (converged_run && summary.mode_check.passed) return finish(FullSpaceStatus::Converged, "Ipopt: " + run.status);
