@@ -1,0 +1,484 @@
+// Full-space calibration (minimize_fullspace: Ipopt Newton on modes, eigenvalues and parameters
+// at once) against reduced-space projected L-BFGS (minimize_reduced), side by side in one run, on
+// the LFU synthetic problem at several mesh sizes.
+//
+// Problem: problems/lfu/synthetic.yaml (five parameters, log scaling, bounds, noise-free modes
+// with shapes synthesized from the truth on the same mesh) with only the first --modes measured
+// modes kept. Both methods start from truth x --start-factor (clamped to the bounds). The default
+// 0.7 is a start near enough that both converge to the truth on the paired modes; the report's
+// 10x-low start is a globalization study, not a cost study.
+//
+// Each (size, method) runs in a forked child so that its peak memory (max RSS) is its own and a
+// case that runs too long or too big can be stopped without stopping the run: the child is
+// killed by alarm() after --max-seconds (reported as "timeout") and its address space is
+// limited to --max-memory-mb (an allocation beyond it fails inside the child, reported as
+// "failed"); the parent prints what it got and goes on.
+//
+// Same final accuracy. Full space runs with FullSpaceOptions defaults (scaled KKT tolerance
+// 1e-10); reduced L-BFGS with ReducedOptions defaults (projected gradient 1e-10 in the scaled
+// variables, relative 1e-12) but a higher iteration cap (--reduced-max-iterations), so that both
+// stop on a converged optimum. Their final max relative parameter errors |p/p_true - 1| are
+// printed, and because a gradient tolerance and a KKT tolerance are not the same accuracy, also
+// the time each method took to first reach a common parameter error (--target-error, 1e-8): the
+// second ratio compares time to the same accuracy.
+//
+// Columns: iterations are L-BFGS iterations, or for full space Ipopt iterations + reduced L-BFGS
+// globalization iterations; "fwd" forward modal solves (full space: globalization, start, one per
+// Ipopt iteration for the mode guard, final check); "KKT" Newton systems Ipopt assembled (Hessian
+// evaluations); "s/it" = ipopt_seconds / Ipopt iterations, including the guard's forward solve
+// (guard s is its total); "out s" the full-space time outside Ipopt (globalization, start,
+// final check); "peak MB" the child's max RSS, "setup MB" its max RSS before the method started
+// (problem load with the synthesis of the measured modes, identical for both methods).
+//
+// Where the time goes inside Ipopt: --ipopt-print-level 5 prints Ipopt's iteration table (the
+// lg(rg) column shows inertia corrections: a Hessian regularization and refactorization) and at
+// the end "Total CPU secs in IPOPT (w/o function evaluations)" (mostly the MUMPS factorizations)
+// against "Total CPU secs in NLP function evaluations" (Jacobian/Hessian assembly). Ipopt reads
+// ./ipopt.opt when it starts, so running in a directory with an ipopt.opt containing
+// "print_timing_statistics yes" adds the per-component breakdown (LinearSystemFactorization,
+// symbolic factorization, back solves, function evaluations).
+//
+// Usage: fullspace_benchmark --help
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "bench_util.hpp"
+#include "modalcal/assembly.hpp"
+#include "modalcal/fullspace.hpp"
+#include "modalcal/objective.hpp"
+#include "modalcal/output.hpp"
+#include "modalcal/problem.hpp"
+#include "modalcal/reduced.hpp"
+
+using namespace modalcal;
+using modalcal::bench::parse_list;
+using modalcal::bench::split_list;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Wall times are only comparable on an otherwise idle machine: print the load next to them.
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  double one = NAN, five = NAN;
+  in >> one >> five;
+  char text[64];
+  std::snprintf(text, sizeof text, "%.1f (1 min), %.1f (5 min)", one, five);
+  return text;
+}
+
+long max_rss_kb() {
+  struct rusage usage;
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
+}
+
+enum class Method { Reduced, FullSpace };
+const char* method_name(Method m) { return m == Method::Reduced ? "reduced L-BFGS" : "full space"; }
+
+struct Settings {
+  std::string problem_path, mesh_problem_path;
+  int modes = 4;
+  double start_factor = 0.7;
+  double target_error = 1e-8;
+  int reduced_max_iterations = 1000;
+  int ipopt_print_level = 0;
+  double max_seconds = 900;
+  double max_memory_mb = 0;
+};
+
+// Plain data: it crosses the pipe from the child as bytes.
+struct CaseResult {
+  bool ran = false;                // the child sent a result
+  bool ok = false;                 // the method converged (full space: mode check passed too)
+  char status[96] = "";
+  int dofs = 0, modes = 0;
+  int iterations = 0, globalization_iterations = 0, restarts = 0;
+  int forward_solves = 0, kkt_solves = 0;
+  int unknowns = 0, constraints = 0;
+  double setup_s = 0, seconds = 0, ipopt_s = 0, guard_s = 0;
+  double time_to_target = NAN;     // first iterate with parameter error <= target
+  double start_error = NAN, final_error = NAN, final_objective = NAN;
+  double convergence_order = NAN;
+  long setup_kb = 0;
+  // Set by the parent.
+  long peak_kb = 0;
+  bool timed_out = false;
+  int signal = 0;
+};
+
+void set_status(CaseResult* r, const std::string& s) {
+  std::snprintf(r->status, sizeof r->status, "%s", s.c_str());
+}
+
+double parameter_error(const Problem& problem, const Vector& p) {
+  return (p.array() / problem.truth_values().array() - 1).abs().maxCoeff();
+}
+
+// Runs in the child.
+CaseResult run_case(const Settings& s, double refinement, Method method) {
+  CaseResult r;
+  const auto setup_start = Clock::now();
+  Problem problem = load_problem(s.problem_path, LoadOptions{refinement});
+  if (!problem.has_truth()) throw std::invalid_argument(s.problem_path + ": the benchmark needs truth values");
+  if (static_cast<int>(problem.measured.size()) < s.modes)
+    throw std::invalid_argument(s.problem_path + " has only " + std::to_string(problem.measured.size()) +
+                                " measured modes");
+  // Fewer measured modes; the forward solve still computes problem.options.num_modes (+ extra)
+  // model modes, which MAC pairing needs.
+  problem.measured.resize(s.modes);
+  r.modes = s.modes;
+  Vector p0 = s.start_factor * problem.truth_values();
+  p0 = p0.cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
+  r.start_error = parameter_error(problem, p0);
+  Objective objective(problem);
+  r.dofs = ParametricSystem(problem.model, problem.parameter_targets()).num_dofs();
+  r.setup_s = seconds_since(setup_start);
+  r.setup_kb = max_rss_kb();
+
+  Clock::time_point t0;
+  auto note = [&](double error) {
+    if (std::isnan(r.time_to_target) && error <= s.target_error) r.time_to_target = seconds_since(t0);
+  };
+  if (method == Method::Reduced) {
+    ReducedOptions o;
+    o.max_iterations = s.reduced_max_iterations;
+    o.progress = [&](const IterationRecord& record) { note(record.parameter_error); };
+    t0 = Clock::now();
+    const ReducedSummary summary = minimize_reduced(objective, p0, o);
+    r.seconds = seconds_since(t0);
+    r.ok = summary.converged();
+    set_status(&r, to_string(summary.termination));
+    r.iterations = summary.iterations;
+    r.forward_solves = summary.forward_solves;
+    if (summary.final.size()) r.final_error = parameter_error(problem, summary.final);
+    r.final_objective = summary.final_objective;
+  } else {
+    FullSpaceOptions o;
+    o.print_level = s.ipopt_print_level;
+    o.progress = [&](const KktRecord& record) { note(record.parameter_error); };
+    t0 = Clock::now();
+    const FullSpaceSummary summary = minimize_fullspace(objective, p0, o);
+    r.seconds = seconds_since(t0);
+    r.ok = summary.converged();
+    set_status(&r, to_string(summary.status));
+    r.iterations = summary.iterations;
+    r.globalization_iterations = summary.globalization_iterations;
+    r.restarts = summary.restarts;
+    r.forward_solves = summary.forward_solves;
+    r.kkt_solves = summary.kkt_solves;
+    r.unknowns = summary.num_unknowns;
+    r.constraints = summary.num_constraints;
+    r.ipopt_s = summary.ipopt_seconds;
+    r.guard_s = summary.guard_seconds;
+    r.convergence_order = summary.convergence_order;
+    if (summary.final.size()) r.final_error = parameter_error(problem, summary.final);
+    r.final_objective = summary.final_objective;
+    if (!r.ok && !summary.message.empty()) std::fprintf(stderr, "full space: %s\n", summary.message.c_str());
+  }
+  return r;
+}
+
+CaseResult run_in_child(const Settings& s, double refinement, Method method) {
+  int fds[2];
+  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    close(fds[0]);
+    // The default action of SIGALRM ends the process; the parent sees the signal.
+    signal(SIGALRM, SIG_DFL);
+    alarm(static_cast<unsigned>(std::ceil(s.max_seconds)));
+    if (s.max_memory_mb > 0) {
+      struct rlimit limit;
+      limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(s.max_memory_mb * 1024 * 1024);
+      setrlimit(RLIMIT_AS, &limit);
+    }
+    CaseResult r;
+    try {
+      r = run_case(s, refinement, method);
+      r.ran = true;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s case failed: %s\n", method_name(method), e.what());
+      r.ran = true;
+      set_status(&r, std::string("failed: ") + e.what());
+    }
+    std::cout.flush();
+    std::fflush(stdout);
+    std::fflush(stderr);
+    if (write(fds[1], &r, sizeof(r)) != static_cast<ssize_t>(sizeof(r))) _exit(1);
+    _exit(0);
+  }
+  close(fds[1]);
+  CaseResult r;
+  const bool got = read(fds[0], &r, sizeof(r)) == static_cast<ssize_t>(sizeof(r));
+  close(fds[0]);
+  int status = 0;
+  struct rusage usage;
+  wait4(pid, &status, 0, &usage);
+  if (!got) {
+    r = CaseResult{};
+    if (WIFSIGNALED(status)) {
+      r.signal = WTERMSIG(status);
+      r.timed_out = r.signal == SIGALRM;
+      set_status(&r, r.timed_out ? "timeout" : std::string("killed by signal ") + std::to_string(r.signal) +
+                                                   (r.signal == SIGKILL ? " (out of memory?)" : ""));
+    } else {
+      set_status(&r, "child exited without a result");
+    }
+  }
+  r.peak_kb = usage.ru_maxrss;
+  return r;
+}
+
+std::string format(const char* fmt, double v) {
+  if (std::isnan(v)) return "-";
+  char text[64];
+  std::snprintf(text, sizeof text, fmt, v);
+  return text;
+}
+
+void print_header() {
+  std::printf("%7s %5s %-14s %-15s %9s %5s %4s %8s %7s %7s %7s %10s %9s %9s %8s %8s %8s %8s\n", "DOFs", "modes",
+              "method", "status", "iters", "fwd", "KKT", "total s", "s/it", "guard s", "out s", "t(target)",
+              "start err", "final err", "setup MB", "peak MB", "t ratio", "tt ratio");
+}
+
+void print_row(const CaseResult& r, Method method, int dofs_hint, int modes, const CaseResult* reduced) {
+  const bool full = method == Method::FullSpace;
+  const bool have = r.ran && r.dofs > 0;
+  std::string iterations = "-";
+  if (have) iterations = full ? std::to_string(r.iterations) + "+" + std::to_string(r.globalization_iterations)
+                              : std::to_string(r.iterations);
+  if (have && full && r.restarts) iterations += "r" + std::to_string(r.restarts);
+  const double per_iteration = full && r.iterations > 0 ? r.ipopt_s / r.iterations : NAN;
+  const double outside = full && have ? r.seconds - r.ipopt_s : NAN;
+  double ratio = NAN, target_ratio = NAN;
+  if (full && reduced && have && reduced->ran && reduced->seconds > 0) {
+    ratio = r.seconds / reduced->seconds;
+    target_ratio = r.time_to_target / reduced->time_to_target;
+  }
+  std::printf("%7d %5d %-14s %-15.15s %9s %5s %4s %8s %7s %7s %7s %10s %9s %9s %8s %8.0f %8s %8s\n",
+              have ? r.dofs : dofs_hint, modes, method_name(method), r.status, iterations.c_str(),
+              have ? std::to_string(r.forward_solves).c_str() : "-",
+              have && full ? std::to_string(r.kkt_solves).c_str() : "-", format("%.1f", have ? r.seconds : NAN).c_str(),
+              format("%.2f", per_iteration).c_str(), format("%.1f", full && have ? r.guard_s : NAN).c_str(),
+              format("%.1f", outside).c_str(), format("%.1f", r.time_to_target).c_str(),
+              format("%.1e", r.start_error).c_str(), format("%.1e", r.final_error).c_str(),
+              format("%.0f", have ? r.setup_kb / 1024.0 : NAN).c_str(), r.peak_kb / 1024.0,
+              format("%.2f", ratio).c_str(), format("%.2f", target_ratio).c_str());
+  std::fflush(stdout);
+}
+
+nlohmann::json to_json(const CaseResult& r, Method method, double refinement) {
+  auto number = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
+  return {{"method", method_name(method)},
+          {"refinement", refinement},
+          {"dofs", r.dofs},
+          {"modes", r.modes},
+          {"status", r.status},
+          {"converged", r.ok},
+          {"timed_out", r.timed_out},
+          {"iterations", r.iterations},
+          {"globalization_iterations", r.globalization_iterations},
+          {"restarts", r.restarts},
+          {"forward_solves", r.forward_solves},
+          {"kkt_solves", r.kkt_solves},
+          {"unknowns", r.unknowns},
+          {"constraints", r.constraints},
+          {"setup_seconds", r.setup_s},
+          {"seconds", r.seconds},
+          {"ipopt_seconds", r.ipopt_s},
+          {"guard_seconds", r.guard_s},
+          {"seconds_to_target", number(r.time_to_target)},
+          {"start_parameter_error", number(r.start_error)},
+          {"final_parameter_error", number(r.final_error)},
+          {"final_objective", number(r.final_objective)},
+          {"convergence_order", number(r.convergence_order)},
+          {"setup_memory_mb", r.setup_kb / 1024.0},
+          {"peak_memory_mb", r.peak_kb / 1024.0}};
+}
+
+const char* kUsage =
+    "usage: fullspace_benchmark [options]\n"
+    "  --problem FILE              problem with truth values (default problems/lfu/synthetic.yaml)\n"
+    "  --mesh-problem FILE         file whose mesh gives the DOF count during the search for the\n"
+    "                              refinement (default problems/lfu/lfu.yaml with the default problem,\n"
+    "                              else --problem; lfu.yaml has the same mesh and no synthesis)\n"
+    "  --dofs LIST                 DOF targets (default 1e4,3e4,1e5)\n"
+    "  --modes LIST                measured modes kept, the first K (default 4)\n"
+    "  --methods LIST              reduced,fullspace (default both)\n"
+    "  --start-factor F            start at truth x F, clamped to the bounds (default 0.7)\n"
+    "  --target-error E            parameter error for the time-to-accuracy column (default 1e-8)\n"
+    "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
+    "  --ipopt-print-level N       FullSpaceOptions::print_level (default 0, silent)\n"
+    "  --max-seconds S             per case; the child is killed after it (default 900)\n"
+    "  --max-memory-mb M           per case address-space limit (default 60 % of RAM; 0 none)\n"
+    "  --json OUT                  also write the results as JSON\n";
+
+int run(int argc, char** argv) {
+  Settings s;
+  s.problem_path = std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu/synthetic.yaml";
+  const std::string default_mesh = std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu/lfu.yaml";
+  bool problem_given = false;
+  std::vector<double> targets = {1e4, 3e4, 1e5};
+  std::vector<double> mode_counts = {4};
+  std::vector<Method> methods = {Method::Reduced, Method::FullSpace};
+  std::string json_path;
+  const long pages = sysconf(_SC_PHYS_PAGES), page_size = sysconf(_SC_PAGE_SIZE);
+  s.max_memory_mb = pages > 0 && page_size > 0 ? 0.6 * static_cast<double>(pages) * page_size / (1024.0 * 1024.0) : 0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
+      return argv[++i];
+    };
+    auto number = [&]() {
+      const std::vector<double> v = parse_list(next());
+      if (v.size() != 1) throw std::invalid_argument(a + " takes one number");
+      return v[0];
+    };
+    if (a == "--problem") s.problem_path = next(), problem_given = true;
+    else if (a == "--mesh-problem") s.mesh_problem_path = next();
+    else if (a == "--dofs") targets = parse_list(next());
+    else if (a == "--modes") mode_counts = parse_list(next());
+    else if (a == "--methods") {
+      methods.clear();
+      for (const std::string& m : split_list(next())) {
+        if (m == "reduced") methods.push_back(Method::Reduced);
+        else if (m == "fullspace") methods.push_back(Method::FullSpace);
+        else throw std::invalid_argument("unknown method '" + m + "' (reduced, fullspace)");
+      }
+    } else if (a == "--start-factor") s.start_factor = number();
+    else if (a == "--target-error") s.target_error = number();
+    else if (a == "--reduced-max-iterations") s.reduced_max_iterations = static_cast<int>(number());
+    else if (a == "--ipopt-print-level") s.ipopt_print_level = static_cast<int>(number());
+    else if (a == "--max-seconds") s.max_seconds = number();
+    else if (a == "--max-memory-mb") s.max_memory_mb = number();
+    else if (a == "--json") json_path = next();
+    else if (a == "--help" || a == "-h") {
+      std::printf("%s", kUsage);
+      return 0;
+    } else {
+      std::fprintf(stderr, "unknown option '%s'\n%s", a.c_str(), kUsage);
+      return 2;
+    }
+  }
+  if (s.mesh_problem_path.empty()) s.mesh_problem_path = problem_given ? s.problem_path : default_mesh;
+  for (double k : mode_counts)
+    if (k < 1 || k != std::floor(k)) throw std::invalid_argument("--modes: positive integers");
+  if (!(s.start_factor > 0)) throw std::invalid_argument("--start-factor must be > 0");
+  if (!(s.max_seconds >= 1)) throw std::invalid_argument("--max-seconds must be >= 1");
+  if (s.ipopt_print_level < 0 || s.ipopt_print_level > 12) throw std::invalid_argument("--ipopt-print-level: 0..12");
+
+  // DOFs grow roughly as r^3 (grid intervals are divided into ceil(r L / h) parts). Refinement 1
+  // is the coarsest valid one (below it the foam elements degenerate), so a target below its
+  // DOF count means r = 1; above, bracket the target by doubling and bisect on log r (counting
+  // DOFs needs only the mesh and the DOF map).
+  std::map<double, int> dof_cache;
+  auto dofs_at = [&](double refinement) {
+    auto it = dof_cache.find(refinement);
+    if (it != dof_cache.end()) return it->second;
+    Problem problem = load_problem(s.mesh_problem_path, LoadOptions{refinement});
+    return dof_cache[refinement] = DofMap(problem.model).num_free();
+  };
+  auto refinement_for = [&](double target) {
+    double lo = 1.0;
+    if (dofs_at(lo) >= target) return lo;
+    double hi = 2.0;
+    while (dofs_at(hi) < target) lo = hi, hi *= 2;
+    for (int k = 0; k < 12; ++k) {
+      const double mid = std::sqrt(lo * hi);
+      (dofs_at(mid) < target ? lo : hi) = mid;
+    }
+    return std::abs(dofs_at(lo) - target) < std::abs(dofs_at(hi) - target) ? lo : hi;
+  };
+
+  std::printf("Full space (Ipopt Newton) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
+  std::printf("start: truth x %g (clamped to bounds); target parameter error %.0e; per case: max %.0f s, %s\n",
+              s.start_factor, s.target_error, s.max_seconds,
+              s.max_memory_mb > 0 ? (format("%.0f", s.max_memory_mb) + " MB address space").c_str()
+                                  : "no memory limit");
+  std::printf("load average at start: %s\n", load_average().c_str());
+  std::printf("iters: L-BFGS, or Ipopt + globalization (rN: N restarts); s/it = Ipopt s / Ipopt iteration "
+              "(guard included); out s = full-space s outside Ipopt;\n"
+              "t(target): s to parameter error <= target; t ratio = full space / reduced total s; tt ratio = the "
+              "same for t(target)\n\n");
+  if (s.ipopt_print_level == 0) print_header();
+
+  struct Row {
+    CaseResult result;
+    Method method;
+    int dofs_hint, modes;
+    double refinement;
+  };
+  std::vector<Row> rows;
+  nlohmann::json json = nlohmann::json::array();
+  for (double target : targets) {
+    const double refinement = refinement_for(target);
+    const int dofs_hint = dofs_at(refinement);
+    for (double modes : mode_counts) {
+      s.modes = static_cast<int>(modes);
+      const CaseResult* reduced = nullptr;
+      CaseResult reduced_result;
+      for (Method method : methods) {
+        if (s.ipopt_print_level > 0)
+          std::printf("--- %d DOFs (refinement %.4f), %d modes, %s ---\n", dofs_hint, refinement, s.modes,
+                      method_name(method));
+        std::fflush(stdout);
+        CaseResult r = run_in_child(s, refinement, method);
+        if (s.ipopt_print_level == 0) print_row(r, method, dofs_hint, s.modes, reduced);
+        if (method == Method::Reduced) reduced_result = r, reduced = &reduced_result;
+        rows.push_back({r, method, dofs_hint, s.modes, refinement});
+        nlohmann::json j = to_json(r, method, refinement);
+        if (method == Method::FullSpace && reduced && reduced->seconds > 0 && r.seconds > 0)
+          j["time_ratio_to_reduced"] = r.seconds / reduced->seconds;
+        json.push_back(j);
+      }
+    }
+  }
+  // With Ipopt's output in between, the table once more at the end, in one piece.
+  if (s.ipopt_print_level > 0) {
+    std::printf("\n");
+    print_header();
+    const CaseResult* reduced = nullptr;
+    for (const Row& row : rows) {
+      if (row.method == Method::Reduced) reduced = &row.result;
+      print_row(row.result, row.method, row.dofs_hint, row.modes, reduced);
+      if (row.method == Method::FullSpace) reduced = nullptr;
+    }
+  }
+  std::printf("\nload average at end: %s\n", load_average().c_str());
+  if (!json_path.empty()) write_file_atomically(json_path, json.dump(2) + "\n");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fullspace_benchmark: %s\n", e.what());
+    return 1;
+  }
+}
