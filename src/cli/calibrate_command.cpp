@@ -26,6 +26,7 @@ struct CalibrateArgs {
   double refine = 0;
   int max_iterations = 100;
   double start_factor = 1;
+  ParameterChoice start;  // --params / --set: where to start
   double regularization = 0;
   bool quiet = false;
   // Full-space tuning, for studies of what each safeguard buys.
@@ -62,7 +63,7 @@ int run_calibrate(const CalibrateArgs& args) {
   Objective objective(problem, objective_options);
   const std::optional<Scaling> scaling =
       args.scaling.empty() ? std::nullopt : std::optional<Scaling>(parse_scaling(args.scaling));
-  const Vector p0 = problem.initial_values() * args.start_factor;
+  const Vector p0 = choose_parameters(&problem, args.start) * args.start_factor;
   std::printf("%s: %d parameters, %zu measured modes, %d DOFs, method %s\n", problem.path.c_str(),
               objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
   CalibrationReport report;
@@ -120,6 +121,8 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--json", args->json, "write the report as JSON to this file");
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
+  cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
   cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")->check(CLI::PositiveNumber);
   cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
       ->check(CLI::NonNegativeNumber);

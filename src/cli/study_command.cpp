@@ -185,6 +185,7 @@ void register_study_command(CLI::App& app, int* exit_code) {
   st->add_option("--method", starts->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
       ->check(CLI::IsMember(method_names()));
   st->callback([starts, exit_code] { *exit_code = run_starts(*starts); });
+  register_full_vs_reduced_study(study, exit_code);
 }
 
 }  // namespace modalcal::cli

@@ -1,0 +1,253 @@
+// `fullspace_calib study full-vs-reduced PROBLEM`: full space, reduced L-BFGS and reduced Newton
+// from the problem's start and from N random starts p0 = p_true 10^U(-1.5, 0.5) (within bounds).
+// Every calibration runs in a child process (this program's `calibrate`), so that its peak memory
+// is its own and a crash or an exhausted memory in one run does not end the study.
+
+#include <CLI/CLI.hpp>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "cli/cli_common.hpp"
+#include "cli/commands.hpp"
+#include "modalcal/fullspace.hpp"
+#include "modalcal/plot.hpp"
+#include "modalcal/reduced.hpp"
+
+namespace modalcal::cli {
+
+namespace {
+
+struct FullVsReducedArgs {
+  std::string problem;
+  std::string out = "out";
+  std::string json;
+  double refine = 0;
+  int starts = 10;
+  unsigned seed = 1;
+  double success_tolerance = 1e-4;
+  std::vector<std::string> methods{"fullspace", "reduced-lbfgs", "reduced-newton"};
+};
+
+struct Run {
+  bool ok = false;        // the child reported back
+  bool success = false;   // right modes and parameters within the tolerance
+  std::string status;
+  int iterations = 0, extra_iterations = 0, forward_solves = 0, kkt_solves = 0;
+  double seconds = 0, peak_mb = 0, order = NAN, error = NAN;
+  std::vector<double> objective, gradient;  // history, for the plot
+};
+
+double median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+// One calibration in a child process: this program's own `calibrate` (a fork alone is not
+// safe once BLAS or OpenMP threads exist), its report JSON read back.
+Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method, const Vector& start,
+                 const std::string& report_path) {
+  std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method", method, "--quiet",
+                                           "--json", report_path, "--max-iterations", "300"};
+  if (args.refine > 0) {
+    argv_strings.push_back("--refine");
+    argv_strings.push_back(std::to_string(args.refine));
+  }
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    char value[64];
+    std::snprintf(value, sizeof value, "%.17g", start[j]);
+    argv_strings.push_back("--set");
+    argv_strings.push_back(problem.parameters[j].name + "=" + value);
+  }
+  std::vector<char*> argv;
+  for (std::string& a : argv_strings) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::filesystem::remove(report_path);
+  std::fflush(stdout);
+  Run run;
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork() failed");
+  if (pid == 0) {
+    if (!freopen("/dev/null", "w", stdout)) _exit(127);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  wait4(pid, &status, 0, &usage);
+  run.peak_mb = usage.ru_maxrss / 1024.0;
+  if (!std::filesystem::exists(report_path)) {
+    run.status = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status))
+                                     : "no report (exit " + std::to_string(WEXITSTATUS(status)) + ")";
+    return run;
+  }
+  std::ifstream in(report_path);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  const Vector truth = problem.truth_values();
+  double error = 0;
+  for (size_t k = 0; k < problem.parameters.size(); ++k) {
+    const nlohmann::json& value = j["parameters"][k]["final"];
+    error = std::max(error, value.is_null() ? INFINITY : std::abs(value.get<double>() / truth[k] - 1));
+  }
+  run.ok = true;
+  run.status = j.value("status", "?");
+  run.error = error;
+  run.iterations = j.value("iterations", 0);
+  run.extra_iterations = j.value("globalization_iterations", 0);
+  run.forward_solves = j.value("forward_solves", 0);
+  run.kkt_solves = j.value("kkt_solves", 0);
+  run.seconds = j.value("time_s", 0.0);
+  for (const nlohmann::json& h : j["history"]) {
+    run.objective.push_back(h["objective"]);
+    run.gradient.push_back(h["gradient_norm"]);
+  }
+  if (method == "fullspace") {
+    run.order = j["convergence_order"].is_null() ? NAN : j["convergence_order"].get<double>();
+    // Reduced evaluations pair a forward solve each, so their modes are right by construction;
+    // the full space must pass its final mode check.
+    run.success = j["mode_check"]["passed"].get<bool>() && error <= args.success_tolerance;
+  } else {
+    run.order = estimate_convergence_order(run.gradient);
+    run.success = error <= args.success_tolerance;
+  }
+  return run;
+}
+
+int run_full_vs_reduced(const FullVsReducedArgs& args) {
+  const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!problem.has_truth())
+    throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
+  const Vector truth = problem.truth_values(), lower = problem.lower_bounds(), upper = problem.upper_bounds();
+  std::vector<Vector> starts{problem.initial_values()};
+  std::mt19937 random(args.seed);
+  std::uniform_real_distribution<double> exponent(-1.5, 0.5);
+  for (int s = 0; s < args.starts; ++s) {
+    Vector p(truth.size());
+    for (int j = 0; j < p.size(); ++j) p[j] = truth[j] * std::pow(10.0, exponent(random));
+    starts.push_back(p.cwiseMax(lower).cwiseMin(upper));
+  }
+  std::printf("%s: %zu starts (the problem's and %d random, seed %u), methods:", problem.path.c_str(), starts.size(),
+              args.starts, args.seed);
+  for (const std::string& m : args.methods) std::printf(" %s", m.c_str());
+  std::printf("\n");
+
+  std::filesystem::create_directories(args.out);
+  const std::string report_path = (std::filesystem::path(args.out) / "full_vs_reduced_run.json").string();
+  std::vector<std::vector<Run>> runs(args.methods.size());
+  nlohmann::json json_runs = nlohmann::json::array();
+  for (size_t s = 0; s < starts.size(); ++s) {
+    for (size_t m = 0; m < args.methods.size(); ++m) {
+      const Run r = run_isolated(args, problem, args.methods[m], starts[s], report_path);
+      runs[m].push_back(r);
+      std::printf("start %2zu %-15s %-9s %-20s its %3d+%-3d error %.2e  %.2f s  %.0f MB\n", s, args.methods[m].c_str(),
+                  r.success ? "success" : "failure", r.status.c_str(), r.extra_iterations, r.iterations, r.error,
+                  r.seconds, r.peak_mb);
+      std::fflush(stdout);
+      nlohmann::json j = {{"start", s},          {"method", args.methods[m]}, {"success", r.success},
+                          {"status", r.status},  {"iterations", r.iterations},
+                          {"globalization_iterations", r.extra_iterations},
+                          {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
+                          {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
+                          {"start_parameters", std::vector<double>(starts[s].data(), starts[s].data() + starts[s].size())}};
+      j["order"] = std::isfinite(r.order) ? nlohmann::json(r.order) : nlohmann::json();
+      j["parameter_error"] = std::isfinite(r.error) ? nlohmann::json(r.error) : nlohmann::json();
+      json_runs.push_back(j);
+    }
+  }
+
+  std::printf("\n%-15s %9s %12s %12s %8s %8s %10s %10s %9s %7s\n", "method", "successes", "iterations",
+              "(+global.)", "solves", "KKT", "median s", "total s", "peak MB", "order");
+  nlohmann::json summary = nlohmann::json::object();
+  PlotPanel objective_panel{"objective J", true, {}}, gradient_panel{"|projected gradient| or dual infeasibility", true, {}};
+  for (size_t m = 0; m < args.methods.size(); ++m) {
+    int successes = 0;
+    std::vector<double> iterations, extra, solves, kkt, seconds, orders;
+    double peak = 0, total = 0;
+    for (const Run& r : runs[m]) {
+      successes += r.success;
+      peak = std::max(peak, r.peak_mb);
+      total += r.seconds;
+      if (!r.ok) continue;
+      iterations.push_back(r.iterations);
+      extra.push_back(r.extra_iterations);
+      solves.push_back(r.forward_solves);
+      kkt.push_back(r.kkt_solves);
+      seconds.push_back(r.seconds);
+      if (r.success) orders.push_back(r.order);
+    }
+    std::printf("%-15s %4d/%-4zu %12.1f %12.1f %8.1f %8.1f %10.2f %10.1f %9.0f %7.2f\n", args.methods[m].c_str(),
+                successes, runs[m].size(), median(iterations), median(extra), median(solves), median(kkt),
+                median(seconds), total, peak, median(orders));
+    auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+    summary[args.methods[m]] = {{"successes", successes},           {"runs", runs[m].size()},
+                                {"median_iterations", number(median(iterations))},
+                                {"median_globalization_iterations", number(median(extra))},
+                                {"median_forward_solves", number(median(solves))},
+                                {"median_kkt_solves", number(median(kkt))},
+                                {"median_seconds", number(median(seconds))}, {"total_seconds", total},
+                                {"peak_mb", peak},                  {"median_order", number(median(orders))}};
+    // The histories from the problem's own start, together.
+    const Run& first = runs[m].front();
+    PlotSeries o{args.methods[m], {}, {}}, g{args.methods[m], {}, {}};
+    for (size_t k = 0; k < first.objective.size(); ++k)
+      if (first.objective[k] > 0) {
+        o.x.push_back(k);
+        o.y.push_back(first.objective[k]);
+      }
+    for (size_t k = 0; k < first.gradient.size(); ++k)
+      if (first.gradient[k] > 0) {
+        g.x.push_back(k);
+        g.y.push_back(first.gradient[k]);
+      }
+    objective_panel.series.push_back(o);
+    gradient_panel.series.push_back(g);
+  }
+  std::printf("success: right modes and every parameter within %.0e of the truth; iterations: Ipopt's for "
+              "fullspace (+ its reduced globalization), medians over the runs\n",
+              args.success_tolerance);
+  std::filesystem::remove(report_path);
+  const std::string plot_path = (std::filesystem::path(args.out) / "full_vs_reduced.png").string();
+  try {
+    plot_panels(plot_path, "Convergence from the problem's start: " + problem.name, "iteration",
+                {objective_panel, gradient_panel});
+    std::printf("plot: %s\n", plot_path.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "warning: no plot: %s\n", e.what());
+  }
+  write_json(args.json, {{"problem", problem.path}, {"seed", args.seed}, {"methods", summary}, {"runs", json_runs}},
+             problem);
+  return 0;
+}
+
+}  // namespace
+
+void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
+  auto args = std::make_shared<FullVsReducedArgs>();
+  CLI::App* cmd = study->add_subcommand(
+      "full-vs-reduced", "Full space, reduced L-BFGS and reduced Newton from the start and from random starts");
+  cmd->add_option("problem", args->problem, "problem file (YAML) with the truth of every parameter")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--starts", args->starts, "random starts p_true 10^U(-1.5, 0.5) (default 10)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--seed", args->seed, "random seed (default 1)");
+  cmd->add_option("--methods", args->methods, "subset of: fullspace reduced-lbfgs reduced-newton")
+      ->check(CLI::IsMember(calibration_method_names()));
+  cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--out", args->out, "directory for the plot (default: out)");
+  cmd->add_option("--json", args->json, "write the study as JSON to this file");
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+  cmd->callback([args, exit_code] { *exit_code = run_full_vs_reduced(*args); });
+}
+
+}  // namespace modalcal::cli
