@@ -156,11 +156,6 @@ struct FullSpaceSummary {
 
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
 
-/// Order q of e_{k+1} ~ C e_k^q, \f$ q = \log(e_{k+1}/e_k) / \log(e_k/e_{k-1}) \f$, from the last
-/// three decreasing errors that lie above both `floor` and twice the smallest error (the
-/// rounding floor the run reached, where the rate is no longer visible); NaN if there are none.
-double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
-
 /// Directional finite-difference check of the full-space derivatives at the forward solution
 /// of p (multipliers random): per block of unknowns (modes, eigenvalues, parameters), the
 /// relative error of J d, H d and the objective gradient against central differences of the

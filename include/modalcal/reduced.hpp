@@ -100,10 +100,18 @@ struct ReducedSummary {
   int failed_evaluations = 0;
   double seconds = 0;
   std::vector<IterationRecord> history;
+  /// Order of convergence of the projected-gradient norm in the last iterations
+  /// (estimate_convergence_order); NaN when too few iterations show a rate.
+  double convergence_order = NAN;
   bool converged() const { return termination == TerminationType::Converged; }
   std::string BriefReport() const;
   std::string FullReport() const;
 };
+
+/// Order q of e_{k+1} ~ C e_k^q, \f$ q = \log(e_{k+1}/e_k) / \log(e_k/e_{k-1}) \f$, from the last
+/// three decreasing errors that lie above both `floor` and twice the smallest error (the
+/// rounding floor the run reached, where the rate is no longer visible); NaN if there are none.
+double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
 
 ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);
 

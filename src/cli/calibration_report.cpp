@@ -97,6 +97,7 @@ nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summar
           {"linear_solves", summary.linear_solves},
           {"failed_evaluations", summary.failed_evaluations},
           {"time_s", summary.seconds},
+          {"convergence_order", number(summary.convergence_order)},
           {"history", history_json(summary.history)}};
 }
 

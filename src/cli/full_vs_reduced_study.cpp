@@ -110,13 +110,12 @@ Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const st
     run.objective.push_back(h["objective"]);
     run.gradient.push_back(h["gradient_norm"]);
   }
+  run.order = j["convergence_order"].is_null() ? NAN : j["convergence_order"].get<double>();
   if (method == "fullspace") {
-    run.order = j["convergence_order"].is_null() ? NAN : j["convergence_order"].get<double>();
     // Reduced evaluations pair a forward solve each, so their modes are right by construction;
     // the full space must pass its final mode check.
     run.success = j["mode_check"]["passed"].get<bool>() && error <= args.success_tolerance;
   } else {
-    run.order = estimate_convergence_order(run.gradient);
     run.success = error <= args.success_tolerance;
   }
   return run;

@@ -124,6 +124,9 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
     summary.linear_solves = objective.linear_solves() - linear_before;
     summary.failed_evaluations = problem.failed_evaluations();
     summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::vector<double> gradients;
+    for (const IterationRecord& r : summary.history) gradients.push_back(r.gradient_norm);
+    summary.convergence_order = estimate_convergence_order(gradients);
     return summary;
   };
   auto record = [&](int iteration, const Point& point, double step) {
@@ -248,9 +251,9 @@ std::string ReducedSummary::BriefReport() const {
   char line[320];
   std::snprintf(line, sizeof line,
                 "%s: %s after %d iterations, objective %.6e -> %.6e, %d forward solves (%d failed), %d linear "
-                "solves, %.2f s",
+                "solves, order %.2f, %.2f s",
                 method.c_str(), to_string(termination).c_str(), iterations, initial_objective, final_objective,
-                forward_solves, failed_evaluations, linear_solves, seconds);
+                forward_solves, failed_evaluations, linear_solves, convergence_order, seconds);
   return line;
 }
 
