@@ -125,5 +125,32 @@ TEST(Cli, NeverOverwritesTheProblemFile) {
   EXPECT_EQ(ReadFile(problem), kBar);
 }
 
+TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
+  const std::string json_path = WriteTempFile("report.json", "");
+  const CliRun run =
+      RunCli("calibrate " + testing::SourcePath("problems/portal-frame/synthetic.yaml") + " --quiet --json " + json_path);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("measured"), std::string::npos) << run.output;  // the mode table
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
+  EXPECT_EQ(j["method"], "fullspace");
+  EXPECT_TRUE(j["converged"].get<bool>());
+  EXPECT_EQ(j["status"], "Converged");
+  EXPECT_EQ(j["ipopt_status"], "Solve_Succeeded");
+  EXPECT_TRUE(j["mode_check"]["passed"].get<bool>()) << j["mode_check"].dump();
+  for (const auto& mac : j["mode_check"]["mac"]) EXPECT_GT(mac.get<double>(), 0.99);
+  ASSERT_FALSE(j["kkt_history"].empty());
+  const auto& last = j["kkt_history"].back();
+  EXPECT_LT(last["kkt_error"].get<double>(), 1e-8);
+  EXPECT_LT(last["parameter_error"].get<double>(), 1e-6);
+  EXPECT_TRUE(j["convergence_order"].is_number());
+  for (const char* key : {"iterations", "forward_solves", "kkt_solves", "time_s", "history", "modes"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  for (const auto& p : j["parameters"]) {
+    for (const char* key : {"name", "initial", "final", "truth", "lower", "upper"}) EXPECT_TRUE(p.contains(key)) << key;
+    EXPECT_NEAR(p["final"].get<double>() / p["truth"].get<double>(), 1.0, 1e-6) << p["name"];
+  }
+  for (const auto& m : j["modes"]) EXPECT_GT(m["mac"].get<double>(), 0.999);
+}
+
 }  // namespace
 }  // namespace modalcal
