@@ -56,8 +56,16 @@ double median(std::vector<double> v) {
 // safe once BLAS or OpenMP threads exist), its report JSON read back.
 Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method, const Vector& start,
                  const std::string& report_path) {
-  std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method", method, "--quiet",
-                                           "--json", report_path, "--max-iterations", "300"};
+  // Variants of the full-space method without its safeguards, to measure what each one buys.
+  const bool full = method.rfind("fullspace", 0) == 0;
+  std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method",
+                                           full ? "fullspace" : method, "--quiet", "--json", report_path,
+                                           "--max-iterations", "300"};
+  if (method == "fullspace-unguarded" || method == "fullspace-naive") argv_strings.push_back("--no-guard");
+  if (method == "fullspace-no-globalization" || method == "fullspace-naive") {
+    argv_strings.push_back("--globalization");
+    argv_strings.push_back("0");
+  }
   if (args.refine > 0) {
     argv_strings.push_back("--refine");
     argv_strings.push_back(std::to_string(args.refine));
@@ -111,7 +119,7 @@ Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const st
     run.gradient.push_back(h["gradient_norm"]);
   }
   run.order = j["convergence_order"].is_null() ? NAN : j["convergence_order"].get<double>();
-  if (method == "fullspace") {
+  if (full) {
     // Reduced evaluations pair a forward solve each, so their modes are right by construction;
     // the full space must pass its final mode check.
     run.success = j["mode_check"]["passed"].get<bool>() && error <= args.success_tolerance;
@@ -239,8 +247,14 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("--starts", args->starts, "random starts p_true 10^U(-1.5, 0.5) (default 10)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--seed", args->seed, "random seed (default 1)");
-  cmd->add_option("--methods", args->methods, "subset of: fullspace reduced-lbfgs reduced-newton")
-      ->check(CLI::IsMember(calibration_method_names()));
+  std::vector<std::string> names = calibration_method_names();
+  for (const char* variant : {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive"})
+    names.push_back(variant);
+  cmd->add_option("--methods", args->methods,
+                  "any of: fullspace reduced-lbfgs reduced-newton reduced-gauss-newton, and the full-space "
+                  "variants without safeguards fullspace-unguarded, fullspace-no-globalization, fullspace-naive "
+                  "(default: the first three)")
+      ->check(CLI::IsMember(names));
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--out", args->out, "directory for the plot (default: out)");
