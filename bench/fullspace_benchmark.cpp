@@ -10,9 +10,15 @@
 //
 // Each (size, method) runs in a forked child so that its peak memory (max RSS) is its own and a
 // case that runs too long or too big can be stopped without stopping the run: the child is
-// killed by alarm() after --max-seconds (reported as "timeout") and its address space is
-// limited to --max-memory-mb (an allocation beyond it fails inside the child, reported as
-// "failed"); the parent prints what it got and goes on.
+// killed by alarm() after --max-seconds (reported as "timeout"), and by the parent once its
+// resident memory exceeds --max-memory-mb (reported as "memory limit"; the parent polls it every
+// 0.1 s). The parent prints what it got and goes on: the child fills its result in memory
+// shared with the parent as it goes, so a killed case still shows what it reached (iterations so
+// far, for full space as "k+?" with s/it measured between its first and last Ipopt iteration,
+// and the last iterate's parameter error in "final err"). (An address-space limit, RLIMIT_AS, does
+// not work as a memory limit here: MUMPS as called by Ipopt asks for ~10x its estimated
+// workspace up front, and at 31k DOFs that 2.5 GB request failed under a 14 GB RLIMIT_AS while
+// the resident peak was 1.6 GB.)
 //
 // Same final accuracy. Full space runs with FullSpaceOptions defaults (scaled KKT tolerance
 // 1e-10); reduced L-BFGS with ReducedOptions defaults (projected gradient 1e-10 in the scaled
@@ -28,7 +34,9 @@
 // evaluations); "s/it" = ipopt_seconds / Ipopt iterations, including the guard's forward solve
 // (guard s is its total); "out s" the full-space time outside Ipopt (globalization, start,
 // final check); "peak MB" the child's max RSS, "setup MB" its max RSS before the method started
-// (problem load with the synthesis of the measured modes, identical for both methods).
+// (problem load with the synthesis of the measured modes, identical for both methods); "cpu s"
+// the method's user + system CPU time over all threads, which, unlike the wall time, other
+// processes on a shared machine barely change (the load average is printed at start and end).
 //
 // Where the time goes inside Ipopt: --ipopt-print-level 5 prints Ipopt's iteration table (the
 // lg(rg) column shows inertia corrections: a Hessian regularization and refactorization) and at
@@ -38,8 +46,19 @@
 // "print_timing_statistics yes" adds the per-component breakdown (LinearSystemFactorization,
 // symbolic factorization, back solves, function evaluations).
 //
+// Measured (2 shared cores, load average 4-10, so wall times are ~1.7x the CPU times): at
+// 13,764 DOFs and 4 modes (55,065 unknowns, 3.8M Jacobian and 2.0M Hessian nonzeros) full space
+// converged in 4 Ipopt + 7 globalization iterations at ~40 s per Ipopt iteration, 7-9x the
+// reduced L-BFGS time to the same 2.5e-11 parameter error. Of Ipopt's 98 CPU s, ~92 were the
+// four MUMPS numeric factorizations (StdAugSystemSolverMultiSolve less symbolic factorization
+// 1.8 s and back solves 1.4 s), function evaluations 0.6 s; no inertia corrections (lg(rg) "-"
+// throughout). Peak RSS 1.6 GB against 0.16 GB for reduced. At 31,143 DOFs one factorization
+// took longer than ~4 CPU minutes (the case timed out at 900 s with a 4.7 GB resident peak);
+// at 133,794 DOFs the first factorization did not finish in 420 s (7.2 GB).
+//
 // Usage: fullspace_benchmark --help
 
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -53,6 +72,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <new>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -84,6 +104,23 @@ std::string load_average() {
   return text;
 }
 
+// VmRSS of a process from /proc, in kB (0 if it cannot be read).
+long resident_kb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmRSS:", 0) == 0) return std::atol(line.c_str() + 6);
+  return 0;
+}
+
+// User + system CPU seconds of this process, all threads.
+double cpu_seconds() {
+  struct rusage usage;
+  getrusage(RUSAGE_SELF, &usage);
+  auto seconds = [](const timeval& t) { return t.tv_sec + 1e-6 * t.tv_usec; };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
 long max_rss_kb() {
   struct rusage usage;
   getrusage(RUSAGE_SELF, &usage);
@@ -104,20 +141,23 @@ struct Settings {
   double max_memory_mb = 0;
 };
 
-// Plain data: it crosses the pipe from the child as bytes.
+// Plain data in memory shared with the child, which fills it in as it goes: a child that is
+// killed leaves what it had reached (setup, iterations so far, last parameter error).
 struct CaseResult {
-  bool ran = false;                // the child sent a result
+  bool ran = false;                // the child finished (converged or not)
   bool ok = false;                 // the method converged (full space: mode check passed too)
   char status[96] = "";
   int dofs = 0, modes = 0;
   int iterations = 0, globalization_iterations = 0, restarts = 0;
   int forward_solves = 0, kkt_solves = 0;
   int unknowns = 0, constraints = 0;
-  double setup_s = 0, seconds = 0, ipopt_s = 0, guard_s = 0;
+  double setup_s = 0, seconds = 0, cpu_s = 0, ipopt_s = 0, guard_s = 0;
   double time_to_target = NAN;     // first iterate with parameter error <= target
   double start_error = NAN, final_error = NAN, final_objective = NAN;
   double convergence_order = NAN;
   long setup_kb = 0;
+  int kkt_records = 0;             // Ipopt iteration callbacks so far (iteration 0 included)
+  double first_kkt_s = NAN;        // time of the first one
   // Set by the parent.
   long peak_kb = 0;
   bool timed_out = false;
@@ -132,9 +172,8 @@ double parameter_error(const Problem& problem, const Vector& p) {
   return (p.array() / problem.truth_values().array() - 1).abs().maxCoeff();
 }
 
-// Runs in the child.
-CaseResult run_case(const Settings& s, double refinement, Method method) {
-  CaseResult r;
+// Runs in the child, filling in r (shared with the parent) as it goes.
+void run_case(const Settings& s, double refinement, Method method, CaseResult& r) {
   const auto setup_start = Clock::now();
   Problem problem = load_problem(s.problem_path, LoadOptions{refinement});
   if (!problem.has_truth()) throw std::invalid_argument(s.problem_path + ": the benchmark needs truth values");
@@ -154,16 +193,24 @@ CaseResult run_case(const Settings& s, double refinement, Method method) {
   r.setup_kb = max_rss_kb();
 
   Clock::time_point t0;
+  double cpu0 = 0;
   auto note = [&](double error) {
     if (std::isnan(r.time_to_target) && error <= s.target_error) r.time_to_target = seconds_since(t0);
   };
   if (method == Method::Reduced) {
     ReducedOptions o;
     o.max_iterations = s.reduced_max_iterations;
-    o.progress = [&](const IterationRecord& record) { note(record.parameter_error); };
+    o.progress = [&](const IterationRecord& record) {
+      note(record.parameter_error);
+      r.iterations = record.iteration;
+      r.forward_solves = record.forward_solves;
+      r.final_error = record.parameter_error;
+    };
     t0 = Clock::now();
+    cpu0 = cpu_seconds();
     const ReducedSummary summary = minimize_reduced(objective, p0, o);
     r.seconds = seconds_since(t0);
+    r.cpu_s = cpu_seconds() - cpu0;
     r.ok = summary.converged();
     set_status(&r, to_string(summary.termination));
     r.iterations = summary.iterations;
@@ -173,10 +220,20 @@ CaseResult run_case(const Settings& s, double refinement, Method method) {
   } else {
     FullSpaceOptions o;
     o.print_level = s.ipopt_print_level;
-    o.progress = [&](const KktRecord& record) { note(record.parameter_error); };
+    o.progress = [&](const KktRecord& record) {
+      note(record.parameter_error);
+      // For a killed run: Ipopt iterations and their time so far (guard included).
+      const double t = seconds_since(t0);
+      if (r.kkt_records++ == 0) r.first_kkt_s = t;
+      r.iterations = record.iteration;
+      r.ipopt_s = t - r.first_kkt_s;
+      r.final_error = record.parameter_error;
+    };
     t0 = Clock::now();
+    cpu0 = cpu_seconds();
     const FullSpaceSummary summary = minimize_fullspace(objective, p0, o);
     r.seconds = seconds_since(t0);
+    r.cpu_s = cpu_seconds() - cpu0;
     r.ok = summary.converged();
     set_status(&r, to_string(summary.status));
     r.iterations = summary.iterations;
@@ -193,51 +250,55 @@ CaseResult run_case(const Settings& s, double refinement, Method method) {
     r.final_objective = summary.final_objective;
     if (!r.ok && !summary.message.empty()) std::fprintf(stderr, "full space: %s\n", summary.message.c_str());
   }
-  return r;
 }
 
 CaseResult run_in_child(const Settings& s, double refinement, Method method) {
-  int fds[2];
-  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  void* shared = mmap(nullptr, sizeof(CaseResult), PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  if (shared == MAP_FAILED) throw std::runtime_error("mmap failed");
+  CaseResult* result = new (shared) CaseResult();
   std::fflush(stdout);
   std::fflush(stderr);
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
-    close(fds[0]);
     // The default action of SIGALRM ends the process; the parent sees the signal.
     signal(SIGALRM, SIG_DFL);
     alarm(static_cast<unsigned>(std::ceil(s.max_seconds)));
-    if (s.max_memory_mb > 0) {
-      struct rlimit limit;
-      limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(s.max_memory_mb * 1024 * 1024);
-      setrlimit(RLIMIT_AS, &limit);
-    }
-    CaseResult r;
     try {
-      r = run_case(s, refinement, method);
-      r.ran = true;
+      run_case(s, refinement, method, *result);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "%s case failed: %s\n", method_name(method), e.what());
-      r.ran = true;
-      set_status(&r, std::string("failed: ") + e.what());
+      set_status(result, std::string("failed: ") + e.what());
     }
+    result->ran = true;
     std::cout.flush();
     std::fflush(stdout);
     std::fflush(stderr);
-    if (write(fds[1], &r, sizeof(r)) != static_cast<ssize_t>(sizeof(r))) _exit(1);
     _exit(0);
   }
-  close(fds[1]);
-  CaseResult r;
-  const bool got = read(fds[0], &r, sizeof(r)) == static_cast<ssize_t>(sizeof(r));
-  close(fds[0]);
+  // Wait, watching the child's resident memory.
   int status = 0;
   struct rusage usage;
-  wait4(pid, &status, 0, &usage);
-  if (!got) {
-    r = CaseResult{};
-    if (WIFSIGNALED(status)) {
+  bool over_memory = false;
+  for (;;) {
+    const pid_t done = wait4(pid, &status, WNOHANG, &usage);
+    if (done == pid) break;
+    if (done < 0) throw std::runtime_error("wait4 failed");
+    if (s.max_memory_mb > 0 && !over_memory && resident_kb(pid) > s.max_memory_mb * 1024) {
+      over_memory = true;
+      kill(pid, SIGKILL);
+    }
+    usleep(100000);
+  }
+  CaseResult r = *result;
+  munmap(shared, sizeof(CaseResult));
+  if (!r.ran) {
+    // What it reached stays (see CaseResult); the totals are unknown.
+    r.seconds = r.cpu_s = NAN;
+    if (method == Method::FullSpace) r.globalization_iterations = -1;
+    if (over_memory) {
+      set_status(&r, "memory limit");
+    } else if (WIFSIGNALED(status)) {
       r.signal = WTERMSIG(status);
       r.timed_out = r.signal == SIGALRM;
       set_status(&r, r.timed_out ? "timeout" : std::string("killed by signal ") + std::to_string(r.signal) +
@@ -258,34 +319,43 @@ std::string format(const char* fmt, double v) {
 }
 
 void print_header() {
-  std::printf("%7s %5s %-14s %-15s %9s %5s %4s %8s %7s %7s %7s %10s %9s %9s %8s %8s %8s %8s\n", "DOFs", "modes",
-              "method", "status", "iters", "fwd", "KKT", "total s", "s/it", "guard s", "out s", "t(target)",
-              "start err", "final err", "setup MB", "peak MB", "t ratio", "tt ratio");
+  std::printf("%7s %5s %-14s %-15s %9s %5s %4s %8s %7s %7s %7s %7s %10s %9s %9s %8s %8s %8s %9s %8s\n", "DOFs",
+              "modes", "method", "status", "iters", "fwd", "KKT", "total s", "cpu s", "s/it", "guard s", "out s",
+              "t(target)",
+              "start err", "final err", "setup MB", "peak MB", "t ratio", "cpu ratio", "tt ratio");
 }
 
 void print_row(const CaseResult& r, Method method, int dofs_hint, int modes, const CaseResult* reduced) {
   const bool full = method == Method::FullSpace;
-  const bool have = r.ran && r.dofs > 0;
+  const bool have = r.dofs > 0;  // set up, finished or not
   std::string iterations = "-";
-  if (have) iterations = full ? std::to_string(r.iterations) + "+" + std::to_string(r.globalization_iterations)
-                              : std::to_string(r.iterations);
+  if (have)
+    iterations = full ? std::to_string(r.iterations) + "+" +
+                            (r.globalization_iterations < 0 ? "?" : std::to_string(r.globalization_iterations))
+                      : std::to_string(r.iterations);
   if (have && full && r.restarts) iterations += "r" + std::to_string(r.restarts);
-  const double per_iteration = full && r.iterations > 0 ? r.ipopt_s / r.iterations : NAN;
-  const double outside = full && have ? r.seconds - r.ipopt_s : NAN;
-  double ratio = NAN, target_ratio = NAN;
-  if (full && reduced && have && reduced->ran && reduced->seconds > 0) {
+  // A killed run: the time between its first and last Ipopt iteration callbacks.
+  const double per_iteration = !full ? NAN
+                               : r.ran ? (r.iterations > 0 ? r.ipopt_s / r.iterations : NAN)
+                                       : (r.kkt_records > 1 ? r.ipopt_s / (r.kkt_records - 1) : NAN);
+  const double outside = full && r.ran ? r.seconds - r.ipopt_s : NAN;
+  double ratio = NAN, cpu_ratio = NAN, target_ratio = NAN;
+  if (full && reduced && r.ran && reduced->ran && reduced->seconds > 0) {
     ratio = r.seconds / reduced->seconds;
+    cpu_ratio = r.cpu_s / reduced->cpu_s;
     target_ratio = r.time_to_target / reduced->time_to_target;
   }
-  std::printf("%7d %5d %-14s %-15.15s %9s %5s %4s %8s %7s %7s %7s %10s %9s %9s %8s %8.0f %8s %8s\n",
+  std::printf("%7d %5d %-14s %-15.15s %9s %5s %4s %8s %7s %7s %7s %7s %10s %9s %9s %8s %8.0f %8s %9s %8s\n",
               have ? r.dofs : dofs_hint, modes, method_name(method), r.status, iterations.c_str(),
-              have ? std::to_string(r.forward_solves).c_str() : "-",
-              have && full ? std::to_string(r.kkt_solves).c_str() : "-", format("%.1f", have ? r.seconds : NAN).c_str(),
-              format("%.2f", per_iteration).c_str(), format("%.1f", full && have ? r.guard_s : NAN).c_str(),
+              have && (r.ran || !full) ? std::to_string(r.forward_solves).c_str() : "-",
+              r.ran && full ? std::to_string(r.kkt_solves).c_str() : "-", format("%.1f", r.ran ? r.seconds : NAN).c_str(),
+              format("%.1f", r.ran ? r.cpu_s : NAN).c_str(),
+              format("%.2f", per_iteration).c_str(), format("%.1f", full && r.ran ? r.guard_s : NAN).c_str(),
               format("%.1f", outside).c_str(), format("%.1f", r.time_to_target).c_str(),
               format("%.1e", r.start_error).c_str(), format("%.1e", r.final_error).c_str(),
               format("%.0f", have ? r.setup_kb / 1024.0 : NAN).c_str(), r.peak_kb / 1024.0,
-              format("%.2f", ratio).c_str(), format("%.2f", target_ratio).c_str());
+              format("%.2f", ratio).c_str(), format("%.2f", cpu_ratio).c_str(),
+              format("%.2f", target_ratio).c_str());
   std::fflush(stdout);
 }
 
@@ -306,7 +376,9 @@ nlohmann::json to_json(const CaseResult& r, Method method, double refinement) {
           {"unknowns", r.unknowns},
           {"constraints", r.constraints},
           {"setup_seconds", r.setup_s},
-          {"seconds", r.seconds},
+          {"finished", r.ran},
+          {"seconds", number(r.seconds)},
+          {"cpu_seconds", number(r.cpu_s)},
           {"ipopt_seconds", r.ipopt_s},
           {"guard_seconds", r.guard_s},
           {"seconds_to_target", number(r.time_to_target)},
@@ -332,7 +404,7 @@ const char* kUsage =
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
     "  --ipopt-print-level N       FullSpaceOptions::print_level (default 0, silent)\n"
     "  --max-seconds S             per case; the child is killed after it (default 900)\n"
-    "  --max-memory-mb M           per case address-space limit (default 60 % of RAM; 0 none)\n"
+    "  --max-memory-mb M           per case resident-memory limit (default 60 % of RAM; 0 none)\n"
     "  --json OUT                  also write the results as JSON\n";
 
 int run(int argc, char** argv) {
@@ -410,20 +482,22 @@ int run(int argc, char** argv) {
       const double mid = std::sqrt(lo * hi);
       (dofs_at(mid) < target ? lo : hi) = mid;
     }
-    return std::abs(dofs_at(lo) - target) < std::abs(dofs_at(hi) - target) ? lo : hi;
+    // Nearest on a log scale: the DOF count jumps (on the LFU mesh from 66,393 at r = 1.97 to
+    // 133,794 at r = 2.03, nothing in between), and a target is an order of magnitude.
+    return std::abs(std::log(dofs_at(lo) / target)) < std::abs(std::log(dofs_at(hi) / target)) ? lo : hi;
   };
 
   std::printf("Full space (Ipopt Newton) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
   std::printf("start: truth x %g (clamped to bounds); target parameter error %.0e; per case: max %.0f s, %s\n",
               s.start_factor, s.target_error, s.max_seconds,
-              s.max_memory_mb > 0 ? (format("%.0f", s.max_memory_mb) + " MB address space").c_str()
+              s.max_memory_mb > 0 ? (format("%.0f", s.max_memory_mb) + " MB resident").c_str()
                                   : "no memory limit");
   std::printf("load average at start: %s\n", load_average().c_str());
   std::printf("iters: L-BFGS, or Ipopt + globalization (rN: N restarts); s/it = Ipopt s / Ipopt iteration "
               "(guard included); out s = full-space s outside Ipopt;\n"
-              "t(target): s to parameter error <= target; t ratio = full space / reduced total s; tt ratio = the "
-              "same for t(target)\n\n");
-  if (s.ipopt_print_level == 0) print_header();
+              "t(target): s to parameter error <= target; t ratio = full space / reduced total s; cpu ratio = the "
+              "same for cpu s, tt ratio for t(target)\n\n");
+  bool header_printed = false;  // before the first row (after any note on the mesh)
 
   struct Row {
     CaseResult result;
@@ -436,6 +510,9 @@ int run(int argc, char** argv) {
   for (double target : targets) {
     const double refinement = refinement_for(target);
     const int dofs_hint = dofs_at(refinement);
+    if (std::abs(dofs_hint / target - 1) > 0.2)
+      std::printf("note: no mesh near %.0f DOFs; the nearest (log scale) has %d (refinement %.4f)\n", target,
+                  dofs_hint, refinement);
     for (double modes : mode_counts) {
       s.modes = static_cast<int>(modes);
       const CaseResult* reduced = nullptr;
@@ -446,7 +523,10 @@ int run(int argc, char** argv) {
                       method_name(method));
         std::fflush(stdout);
         CaseResult r = run_in_child(s, refinement, method);
-        if (s.ipopt_print_level == 0) print_row(r, method, dofs_hint, s.modes, reduced);
+        if (s.ipopt_print_level == 0) {
+          if (!header_printed) print_header(), header_printed = true;
+          print_row(r, method, dofs_hint, s.modes, reduced);
+        }
         if (method == Method::Reduced) reduced_result = r, reduced = &reduced_result;
         rows.push_back({r, method, dofs_hint, s.modes, refinement});
         nlohmann::json j = to_json(r, method, refinement);
