@@ -52,9 +52,9 @@
 // reduced L-BFGS time to the same 2.5e-11 parameter error. Of Ipopt's 98 CPU s, ~92 were the
 // four MUMPS numeric factorizations (StdAugSystemSolverMultiSolve less symbolic factorization
 // 1.8 s and back solves 1.4 s), function evaluations 0.6 s; no inertia corrections (lg(rg) "-"
-// throughout). Peak RSS 1.6 GB against 0.16 GB for reduced. At 31,143 DOFs one factorization
-// took longer than ~4 CPU minutes (the case timed out at 900 s with a 4.7 GB resident peak);
-// at 133,794 DOFs the first factorization did not finish in 420 s (7.2 GB).
+// throughout). Peak RSS 1.6 GB against 0.16 GB for reduced. At 31,143 DOFs full space timed
+// out at 900 s wall (~8 CPU minutes, 4.7 GB resident peak) where reduced took 79 s; at 133,794
+// DOFs it was still in its first Ipopt iteration at 420 s (7.2 GB).
 //
 // Usage: fullspace_benchmark --help
 
