@@ -2,13 +2,31 @@
 // Small helpers shared by the benchmark executables (header-only: benchmarks are not part of the
 // library).
 
+#include <chrono>
+#include <cmath>
 #include <cstddef>
+#include <cstdio>
+#include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace modalcal::bench {
+
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// The load average "x (1 min), y (5 min)": wall times are only comparable on an otherwise idle
+/// machine, so benchmarks print it next to them.
+inline std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  double one = NAN, five = NAN;
+  in >> one >> five;
+  char text[64];
+  std::snprintf(text, sizeof text, "%.1f (1 min), %.1f (5 min)", one, five);
+  return text;
+}
 
 /// Items of a comma-separated command-line list ("lbfgs,newton"), in order; "" gives no items.
 inline std::vector<std::string> split_list(const std::string& text) {

@@ -44,21 +44,12 @@
 using namespace modalcal;
 using modalcal::bench::parse_list;
 using modalcal::bench::split_list;
-using Clock = std::chrono::steady_clock;
+using modalcal::bench::load_average;
+using modalcal::bench::seconds_since;
+using Clock = modalcal::bench::Clock;
 
 namespace {
 
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// Wall times are only comparable on an otherwise idle machine: print the load next to them.
-std::string load_average() {
-  std::ifstream in("/proc/loadavg");
-  double one = NAN, five = NAN;
-  in >> one >> five;
-  char text[64];
-  std::snprintf(text, sizeof text, "%.1f (1 min), %.1f (5 min)", one, five);
-  return text;
-}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
