@@ -7,6 +7,7 @@
 #include "modalcal/mode_description.hpp"
 #include "objective/assignment.hpp"
 #include "objective/deflated_solve.hpp"
+#include "objective/shape_misfit.hpp"
 
 namespace modalcal {
 
@@ -44,19 +45,6 @@ struct Objective::Workspace {
 
 namespace {
 
-// Rows of T for the sensor DOFs: the sensor reading of a free-DOF vector u is P u.
-SparseMatrix sensor_matrix(const Problem& problem, const DofMap& dofs) {
-  std::vector<Eigen::Triplet<double, int>> entries;
-  for (size_t s = 0; s < problem.sensors.size(); ++s) {
-    const int f = dofs.full_index(problem.sensors[s].node, problem.sensors[s].component);
-    for (DofMap::RowSparseMatrix::InnerIterator it(dofs.transformation_rows(), f); it; ++it)
-      entries.emplace_back(static_cast<int>(s), static_cast<int>(it.col()), it.value());
-  }
-  SparseMatrix P(problem.sensors.size(), dofs.num_free());
-  P.setFromTriplets(entries.begin(), entries.end());
-  return P;
-}
-
 // e = (I - phi phi^T) y / |y| for unit phi, and de/dy = (I - phi phi^T)(I - yhat yhat^T)/|y|.
 Vector shape_residual(const Vector& y, const Vector& phi_unit) {
   const Vector yhat = y / y.norm();
@@ -86,7 +74,7 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
     throw std::invalid_argument(problem.path + ": no measured modes to calibrate against");
   system_ = std::make_unique<ParametricSystem>(problem.model, problem.parameter_targets());
   workspace_ = std::make_unique<Workspace>();
-  workspace_->sensors = sensor_matrix(problem, system_->dof_map());
+  workspace_->sensors = detail::sensor_matrix(problem, system_->dof_map());
   int highest = problem.options.num_modes;
   for (const MeasuredMode& m : problem.measured) {
     if (m.pairing.kind == PairingRule::Kind::ModelIndex) highest = std::max(highest, m.pairing.model_index);
@@ -134,13 +122,7 @@ void Objective::add_mode_hessian(const Vector& p, int i, double lambda, const Ve
           measured.weight * r / target * 0.5 * (d2lambda + d2lambda.transpose());
   }
   if (Ju.size() == 0) return;
-  // Hessian of kappa/2 (1 - (phi^T y)^2 / y^T y) in y, phi unit (the 1/2 cancels the 2 of a^2).
-  const Vector phi = measured.shape.normalized();
-  const Vector y = workspace_->sensors * u;
-  const double a = phi.dot(y), s = y.squaredNorm();
-  Matrix Hy = -phi * phi.transpose() / s + 2 * a * (phi * y.transpose() + y * phi.transpose()) / (s * s) +
-              (a * a / (s * s)) * Matrix::Identity(y.size(), y.size()) - 4 * a * a * y * y.transpose() / (s * s * s);
-  Hy *= measured.shape_weight;
+  const Matrix Hy = detail::ShapeMisfit(measured.shape, measured.shape_weight).hessian(workspace_->sensors * u);
   const Matrix Y = workspace_->sensors * dU;
   *H += Y.transpose() * Hy * Y;
   // w0^T Q'_jk.
@@ -345,14 +327,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     if (m.shape.size() == 0 || m.shape_weight == 0) continue;
     const Vector u = U.col(model_of[i]);
     const Vector y = ws.sensors * u;
-    const Vector phi = m.shape.normalized();
-    const Vector res = shape_residual(y, phi);
-    // J_y = kappa (de/dy)^T e; de/dy is symmetric-projector based: (de/dy)^T e = de/dy applied to e.
-    const double norm = y.norm();
-    const Vector yhat = y / norm;
-    const Vector Pe = res - phi * phi.dot(res);
-    const Vector Jy = m.shape_weight * (Pe - yhat * yhat.dot(Pe)) / norm;
-    const Vector Ju = ws.sensors.transpose() * Jy;
+    const Vector Ju = ws.sensors.transpose() * detail::ShapeMisfit(m.shape, m.shape_weight).gradient(y);
     shape_gradient[i] = Ju;
     rhs.conservativeResize(Eigen::NoChange, rhs.cols() + 1);
     rhs.col(rhs.cols() - 1) = ws.M * u * u.dot(Ju) - Ju;
