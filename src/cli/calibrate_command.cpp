@@ -67,7 +67,7 @@ int run_calibrate(const CalibrateArgs& args) {
   std::printf("%s: %d parameters, %zu measured modes, %d DOFs, method %s\n", problem.path.c_str(),
               objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
   CalibrationReport report;
-  bool converged = false;
+  bool usable = false;
   if (args.method == "fullspace") {
     if (args.no_bounds) throw InputError("--no-bounds: the full-space method always uses the parameters' bounds");
     FullSpaceOptions options;
@@ -84,7 +84,7 @@ int run_calibrate(const CalibrateArgs& args) {
     std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
     report = make_report(objective, summary.initial, summary.final);
     report.summary = summary_json(problem, summary);
-    converged = summary.converged();
+    usable = summary.converged();
   } else {
     ReducedOptions options;
     options.method = parse_method(args.method);
@@ -96,7 +96,9 @@ int run_calibrate(const CalibrateArgs& args) {
     std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
     report = make_report(objective, summary.initial, summary.final);
     report.summary = summary_json(problem, summary);
-    converged = summary.converged();
+    // L-BFGS often ends on its line search at the rounding floor with a perfect fit: any end
+    // with a final iterate is a result; the status in the report says how it ended.
+    usable = summary.termination != TerminationType::ForwardSolveFailed && summary.final.size() > 0;
   }
   report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},
                      {"bounds", !args.no_bounds},
@@ -104,7 +106,7 @@ int run_calibrate(const CalibrateArgs& args) {
                      {"regularization", args.regularization}};
   std::fputs(report.text.c_str(), stdout);
   write_json(args.json, report.json(), problem);
-  return converged ? 0 : 1;
+  return usable ? 0 : 1;
 }
 
 }  // namespace
