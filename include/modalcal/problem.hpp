@@ -82,6 +82,9 @@ struct Problem {
   std::vector<MeasuredMode> measured;
   ProblemOptions options;
   std::optional<SyntheticSpec> synthetic;  ///< set if `measured` was synthesized
+  /// What loading accepted but a user should know, e.g. test nodes that matched no model node
+  /// or complex test modes made real (`measured: test_data`).
+  std::vector<std::string> warnings;
 
   std::vector<std::vector<PropertyId>> parameter_targets() const;
   Vector initial_values() const;
@@ -110,9 +113,12 @@ class ProblemError : public std::invalid_argument {
   ProblemError(const std::string& file, int line, const std::string& message);
   const std::string& file() const { return file_; }
   int line() const { return line_; }
+  /// The message without the "file:line: " location.
+  const std::string& message() const { return message_; }
  private:
   std::string file_;
   int line_;
+  std::string message_;
 };
 
 }  // namespace modalcal

@@ -20,7 +20,7 @@ Vector collect(const std::vector<Parameter>& parameters, Get get) {
 }  // namespace
 
 ProblemError::ProblemError(const std::string& file, int line, const std::string& message)
-    : std::invalid_argument(located(file, line, message)), file_(file), line_(line) {}
+    : std::invalid_argument(located(file, line, message)), file_(file), line_(line), message_(message) {}
 
 std::string to_string(Scaling scaling) {
   switch (scaling) {

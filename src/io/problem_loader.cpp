@@ -19,6 +19,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "io/box_mesh.hpp"
+#include "io/measured_test_data.hpp"
 #include "io/synthetic.hpp"
 
 namespace modalcal {
@@ -178,6 +179,7 @@ class Loader {
   PairingRule pairing(const Field& f, bool has_shape) const;
   void check_computed(const Field& f, int mode) const;
   SyntheticSpec synthetic(const Field& f) const;
+  detail::TestDataSelection test_data(const Field& f) const;
 
   int block_index(const Field& f) const;
   const NodeSet& node_set(const Field& f) const;
@@ -838,10 +840,14 @@ void Loader::read_options(const Field& f) {
 }
 
 void Loader::read_measured(const Field& f) {
-  const Fields fs = map_of(f, "measured", {"modes", "synthetic"});
-  const Field& which = exactly_one(fs, {"modes", "synthetic"});
+  const Fields fs = map_of(f, "measured", {"modes", "synthetic", "test_data"});
+  const Field& which = exactly_one(fs, {"modes", "synthetic", "test_data"});
   if (which.key == "synthetic") {
     problem_.synthetic = synthetic(which);
+    return;
+  }
+  if (which.key == "test_data") {
+    detail::measured_from_test_data(test_data(which), &problem_);
     return;
   }
   for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item));
@@ -939,6 +945,55 @@ SyntheticSpec Loader::synthetic(const Field& f) const {
     fail(shapes ? *shapes : f,
          "synthetic shapes need sensors; add a 'sensors' section or set 'shapes: false'");
   return spec;
+}
+
+detail::TestDataSelection Loader::test_data(const Field& f) const {
+  const Fields fs = map_of(f, "measured test_data",
+                           {"file", "modes", "map", "tolerance", "directions", "length_unit", "scale_length"});
+  if (!problem_.sensors.empty())
+    fail(f, "test_data defines the sensors (matched nodes × directions); remove the 'sensors' section");
+  detail::TestDataSelection s;
+  s.problem_file = current_file_;
+  s.line = f.line;
+  const Field& file = required(fs, "file");
+  s.path = (std::filesystem::path(current_file_).parent_path() / text(file)).string();
+  s.file_line = file.line;
+  if (const Field* modes = fs.find("modes")) {
+    for (const Field& m : list(*modes)) {
+      const int number = integer_in(m, 0, INT_MAX);
+      if (std::find(s.modes.begin(), s.modes.end(), number) != s.modes.end())
+        fail(m, "mode " + std::to_string(number) + " is listed twice");
+      s.modes.push_back(number);
+      s.mode_lines.push_back(m.line);
+    }
+    if (s.modes.empty()) fail(*modes, "'modes' is empty; list the file's mode numbers, or leave it out for all");
+  }
+  if (const Field* map = fs.find("map"))
+    s.map.by = choice(*map, {"id", "coordinates"}) == 0 ? NodeMatchBy::Id : NodeMatchBy::Coordinates;
+  if (const Field* tolerance = fs.find("tolerance")) {
+    if (s.map.by != NodeMatchBy::Coordinates) fail(*tolerance, "'tolerance' applies only to 'map: coordinates'");
+    s.map.tolerance = positive(*tolerance);
+  }
+  if (const Field* directions = fs.find("directions")) {
+    s.directions.clear();
+    for (const Field& d : list(*directions)) {
+      const int c = choice(d, kDirections);
+      if (std::find(s.directions.begin(), s.directions.end(), c) != s.directions.end())
+        fail(d, "direction " + kDirections[c] + " is listed twice");
+      s.directions.push_back(c);
+    }
+    if (s.directions.empty()) fail(*directions, "'directions' is empty; list any of x, y, z");
+  }
+  const Field* unit = fs.find("length_unit");
+  const Field* scale = fs.find("scale_length");
+  if (unit && scale) fail(*scale, "give either 'length_unit' or 'scale_length', not both");
+  if (unit) {
+    s.lengths.unit = text(*unit);
+    if (!metres_per_length_unit(s.lengths.unit))
+      fail(*unit, "unknown length unit " + quote(s.lengths.unit) + "; known: m, cm, mm, in, ft");
+  }
+  if (scale) s.lengths.scale = positive(*scale);
+  return s;
 }
 
 int Loader::block_index(const Field& f) const {

@@ -1,0 +1,23 @@
+#pragma once
+// Internal: small text helpers shared by the test-data readers and writers.
+#include <sstream>
+#include <string>
+
+namespace modalcal::detail {
+
+/// `s` without leading and trailing blanks (space, tab, carriage return).
+inline std::string trim(const std::string& s) {
+  const size_t first = s.find_first_not_of(" \t\r");
+  if (first == std::string::npos) return "";
+  return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+}
+
+/// A number for messages, with `precision` significant digits.
+inline std::string number_text(double v, int precision = 6) {
+  std::ostringstream s;
+  s.precision(precision);
+  s << v;
+  return s.str();
+}
+
+}  // namespace modalcal::detail
