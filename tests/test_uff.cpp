@@ -2,6 +2,8 @@
 // on malformed variants made from them, coordinate-system rotation, unit conversion, node
 // mapping, the CSV form, and a problem file whose measured modes come from a universal file.
 // Expected values were read by eye from the sample files; line numbers are the files' own.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <complex>
 #include <filesystem>
@@ -9,8 +11,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "modalcal/problem.hpp"
 #include "modalcal/test_data.hpp"
@@ -49,7 +49,8 @@ void ExpectReadError(const std::string& path, int line, const std::vector<std::s
     EXPECT_EQ(e.line(), line) << what;
     const std::string location = line > 0 ? path + ":" + std::to_string(line) + ": " : path + ": ";
     EXPECT_EQ(what.rfind(location, 0), 0u) << what;
-    for (const std::string& f : fragments) EXPECT_NE(what.find(f), std::string::npos) << "'" << f << "' not in: " << what;
+    for (const std::string& f : fragments)
+      EXPECT_NE(what.find(f), std::string::npos) << "'" << f << "' not in: " << what;
   }
 }
 
@@ -133,8 +134,12 @@ TEST(UffSamples, ComplexModeIsMadeRealWithAWarning) {
   EXPECT_TRUE(HasWarning(d.warnings, "MPC"));
 
   // Independent check of the real shape: scan the phase for the largest real part.
-  const std::vector<std::complex<double>> phi = {{0, 0}, {0, 0}, {-0.04111111, -0.01111111},    // node 60101
-                                                 {0, 0}, {0.1111111, 0.09111111}, {0.007111111, 0.004111111}};  // 111111
+  const std::vector<std::complex<double>> phi = {{0, 0},
+                                                 {0, 0},
+                                                 {-0.04111111, -0.01111111},  // node 60101
+                                                 {0, 0},
+                                                 {0.1111111, 0.09111111},
+                                                 {0.007111111, 0.004111111}};  // 111111
   double best_norm = -1, best_theta = 0;
   for (int k = 0; k < 200000; ++k) {
     const double theta = M_PI * k / 200000.0;
@@ -205,7 +210,7 @@ TEST(UffSamples, PermasModeShapesIn2414Load) {
   EXPECT_EQ(d.find_node(1)->coordinates, Vec3(1.0, 0.0, 0.0));
   ASSERT_EQ(d.modes.size(), 10u);
   const double frequencies[] = {0.956363, 2.34163, 5.88075, 7.50675, 8.54122,
-                                14.9563, 17.0424, 17.8180, 19.7208, 25.7643};
+                                14.9563,  17.0424, 17.8180, 19.7208, 25.7643};
   for (int k = 0; k < 10; ++k) {
     EXPECT_EQ(d.modes[k].number, k + 1);
     EXPECT_EQ(d.modes[k].frequency_hz, frequencies[k]);
@@ -234,25 +239,25 @@ TEST(UffSamples, SimcenterStaticResultIsSkippedWithANote) {
 // ---------------------------------------------------------------------------- malformed variants
 
 TEST(UffErrors, TruncatedFileNamesTheOpenDataset) {
-  ExpectReadError(Variant("uff55_translation.uff", {}, 30), 21,
-                  {"dataset 55", "no closing '-1'", "truncated"});
+  ExpectReadError(Variant("uff55_translation.uff", {}, 30), 21, {"dataset 55", "no closing '-1'", "truncated"});
 }
 
 TEST(UffErrors, TruncatedRecordNamesTheNode) {
   // Line 18 holds node 4's values in the first mode; the dataset's '-1' then comes too soon.
-  ExpectReadError(Variant("uff55_translation.uff", {{18, "<drop>"}}), 18,
-                  {"dataset 55", "values of node 4"});
+  ExpectReadError(Variant("uff55_translation.uff", {{18, "<drop>"}}), 18, {"dataset 55", "values of node 4"});
 }
 
 TEST(UffErrors, WrongValueCountPerNode) {
   // Record 6 says 6 components (data characteristic 3), node 1 has 3 values on line 12.
-  ExpectReadError(Variant("uff55_translation.uff", {{8, "         1         2         3         8         2         6"}}), 12,
-                  {"dataset 55", "values of node 1", "expected 6 numbers", "found 3"});
+  ExpectReadError(
+      Variant("uff55_translation.uff", {{8, "         1         2         3         8         2         6"}}), 12,
+      {"dataset 55", "values of node 1", "expected 6 numbers", "found 3"});
 }
 
 TEST(UffErrors, CharacteristicAndValueCountDisagree) {
-  ExpectReadError(Variant("uff55_translation.uff", {{8, "         1         2         2         8         2         6"}}), 8,
-                  {"dataset 55", "disagree"});
+  ExpectReadError(
+      Variant("uff55_translation.uff", {{8, "         1         2         2         8         2         6"}}), 8,
+      {"dataset 55", "disagree"});
 }
 
 TEST(UffErrors, WrongRealCountInRecord7) {
@@ -296,9 +301,7 @@ TEST(UffErrors, UnknownDatasetIsSkippedWithANote) {
   EXPECT_EQ(d.modes[0].line, 6);
 }
 
-TEST(UffErrors, EmptyFileIsNoUniversalFile) {
-  ExpectReadError(WriteTempFile("empty.uff", "\n\n"), 0, {"no datasets"});
-}
+TEST(UffErrors, EmptyFileIsNoUniversalFile) { ExpectReadError(WriteTempFile("empty.uff", "\n\n"), 0, {"no datasets"}); }
 
 // ---------------------------------------------------------------------------- rotation, units
 
@@ -399,7 +402,8 @@ CYL
   1.00000e+00  2.00000e+00  4.00000e+00
     -1
 )") + kNodesAndMode;
-  ExpectReadError(WriteTempFile("cyl.uff", file), 10, {"dataset 15", "node 1", "'CYL'", "cylindrical", "only Cartesian"});
+  ExpectReadError(WriteTempFile("cyl.uff", file), 10,
+                  {"dataset 15", "node 1", "'CYL'", "cylindrical", "only Cartesian"});
 }
 
 TEST(UffUnits, MillimetreFileConvertsToTheModelUnit) {
@@ -515,10 +519,8 @@ TEST(UffMapping, ById) {
 
 TEST(UffMapping, ByCoordinatesWithUnmatchedAndContestedPoints) {
   // 101 is near model node 2; 102 and 103 both nearest to model node 3 (103 nearer); 104 is far.
-  const TestData d = TestNodes({{101, Vec3(1.001, 0, 0)},
-                                {102, Vec3(1, 1.004, 0)},
-                                {103, Vec3(1, 1.002, 0)},
-                                {104, Vec3(0.5, 0.5, 0)}});
+  const TestData d = TestNodes(
+      {{101, Vec3(1.001, 0, 0)}, {102, Vec3(1, 1.004, 0)}, {103, Vec3(1, 1.002, 0)}, {104, Vec3(0.5, 0.5, 0)}});
   NodeMapOptions options;
   options.by = NodeMatchBy::Coordinates;
   options.tolerance = 0.01;

@@ -36,12 +36,12 @@ namespace modalcal {
 struct UffHeader {
   std::string model_name;
   std::string description;
-  std::string database_program;   ///< program that created the model database
-  std::string database_created;   ///< date and time, as written
+  std::string database_program;  ///< program that created the model database
+  std::string database_created;  ///< date and time, as written
   std::string database_saved;
-  std::string file_program;       ///< program that wrote the universal file
-  std::string file_written;       ///< date and time, as written
-  int line = 0;                   ///< of the dataset number, 1-based
+  std::string file_program;  ///< program that wrote the universal file
+  std::string file_written;  ///< date and time, as written
+  int line = 0;              ///< of the dataset number, 1-based
 };
 
 /// Dataset 164: the file's unit system. A factor is the number of file units in one SI unit
@@ -63,11 +63,11 @@ struct UffUnits {
 struct CoordinateSystem {
   int id = 0;
   std::string name;
-  int type = 0;                   ///< 0 Cartesian, 1 cylindrical, 2 spherical (only 0 is usable)
-  Vec3 origin = Vec3::Zero();     ///< in the global frame
-  Mat3 axes = Mat3::Identity();   ///< rows: local x, y, z unit axes in global coordinates
-  int dataset = 0;                ///< 18 or 2420
-  int line = 0;                   ///< of the system's first record
+  int type = 0;                  ///< 0 Cartesian, 1 cylindrical, 2 spherical (only 0 is usable)
+  Vec3 origin = Vec3::Zero();    ///< in the global frame
+  Mat3 axes = Mat3::Identity();  ///< rows: local x, y, z unit axes in global coordinates
+  int dataset = 0;               ///< 18 or 2420
+  int line = 0;                  ///< of the system's first record
 };
 
 /// A node of the test geometry (dataset 15 or 2411).
@@ -89,17 +89,17 @@ struct TestShapeValue {
 
 /// A measured (or FE) mode.
 struct TestMode {
-  int number = 0;                        ///< mode number as written in the file
-  double frequency_hz = 0;               ///< undamped natural frequency
-  std::optional<double> damping_ratio;   ///< viscous damping ratio when the file gives one
-  int values_per_node = 3;               ///< 3 (translations) or 6 (with rotations)
-  std::vector<TestShapeValue> values;    ///< global frame, sorted by node, then component
+  int number = 0;                       ///< mode number as written in the file
+  double frequency_hz = 0;              ///< undamped natural frequency
+  std::optional<double> damping_ratio;  ///< viscous damping ratio when the file gives one
+  int values_per_node = 3;              ///< 3 (translations) or 6 (with rotations)
+  std::vector<TestShapeValue> values;   ///< global frame, sorted by node, then component
   /// Set when the file held a complex shape that best_real_shape() made real.
   bool from_complex = false;
-  double phase_collinearity = 1;         ///< MPC of the complex shape, 1 for real ones
-  std::string description;               ///< the dataset's first ID line (empty if "NONE")
-  int dataset = 0;                       ///< 55, 2414, or 0 for CSV
-  int line = 0;                          ///< where the mode starts in its file
+  double phase_collinearity = 1;  ///< MPC of the complex shape, 1 for real ones
+  std::string description;        ///< the dataset's first ID line (empty if "NONE")
+  int dataset = 0;                ///< 55, 2414, or 0 for CSV
+  int line = 0;                   ///< where the mode starts in its file
 
   /// The value of `component` at `node`, if the mode has one.
   std::optional<double> value(long node, int component) const;
@@ -108,9 +108,9 @@ struct TestMode {
 /// One dataset of a universal file, as met: read, or skipped with the reason.
 struct UffDatasetEntry {
   int number = 0;
-  int line = 0;                  ///< of the dataset number
+  int line = 0;  ///< of the dataset number
   bool read = false;
-  std::string note;              ///< why it was skipped
+  std::string note;  ///< why it was skipped
 };
 
 /// Everything read from a test-data file.
@@ -118,16 +118,16 @@ struct TestData {
   enum class Format { Uff, Csv };
   std::string path;
   Format format = Format::Uff;
-  std::optional<UffHeader> header;                  ///< dataset 151
-  std::optional<UffUnits> units;                    ///< dataset 164
-  std::vector<CoordinateSystem> coordinate_systems; ///< datasets 18 and 2420
-  std::vector<TestNode> nodes;                      ///< datasets 15 and 2411
-  std::vector<TestMode> modes;                      ///< datasets 55 and 2414, or CSV rows
-  std::vector<UffDatasetEntry> datasets;            ///< in file order
+  std::optional<UffHeader> header;                   ///< dataset 151
+  std::optional<UffUnits> units;                     ///< dataset 164
+  std::vector<CoordinateSystem> coordinate_systems;  ///< datasets 18 and 2420
+  std::vector<TestNode> nodes;                       ///< datasets 15 and 2411
+  std::vector<TestMode> modes;                       ///< datasets 55 and 2414, or CSV rows
+  std::vector<UffDatasetEntry> datasets;             ///< in file order
   /// What was assumed or changed and may matter (complex modes made real, shape values of
   /// nodes without geometry taken as global). Skipped datasets are in `datasets`.
   std::vector<std::string> warnings;
-  double length_scale = 1;   ///< product of the factors scale_lengths() applied
+  double length_scale = 1;  ///< product of the factors scale_lengths() applied
 
   /// The geometry node with this id, or nullptr.
   const TestNode* find_node(long id) const;
@@ -156,8 +156,7 @@ TestData read_test_data(const std::string& path);
 std::string test_data_to_csv(const TestData& data);
 
 /// Writes test_data_to_csv() to `path` atomically, refusing to overwrite any of `inputs`.
-void write_test_csv(const TestData& data, const std::string& path,
-                    const std::vector<std::string>& inputs = {});
+void write_test_csv(const TestData& data, const std::string& path, const std::vector<std::string>& inputs = {});
 
 /// Complex shape made real: the mode rotated by the phase θ that maximizes the norm of its
 /// real part, \f$\psi = \mathrm{Re}(e^{i\theta}\phi)\f$; with \f$\phi = a + ib\f$,
@@ -166,9 +165,9 @@ void write_test_csv(const TestData& data, const std::string& path,
 /// \f$\mathrm{MPC} = ((a^Ta - b^Tb)^2 + 4(a^Tb)^2)/(a^Ta + b^Tb)^2\f$ is 1 for a shape that is
 /// real up to a phase and 0 for a circular one; \f$\|\psi\|^2/\|\phi\|^2 = (1+\sqrt{MPC})/2\f$.
 struct RealShape {
-  Vector values;              ///< ψ
-  double rotation_rad = 0;    ///< θ
-  double collinearity = 1;    ///< MPC in [0, 1]
+  Vector values;            ///< ψ
+  double rotation_rad = 0;  ///< θ
+  double collinearity = 1;  ///< MPC in [0, 1]
 };
 /// \param shape any length ≥ 1; an all-zero shape gives zeros with MPC 1.
 RealShape best_real_shape(const Eigen::VectorXcd& shape);
@@ -180,8 +179,7 @@ std::optional<double> metres_per_length_unit(const std::string& unit);
 /// file's dataset 164; a file without one is taken to be in metres (SI, the universal-file
 /// default) and the assumption is added to *assumption if given.
 /// \throws std::invalid_argument for an unknown unit name.
-double length_factor_to(const TestData& data, const std::string& unit,
-                        std::string* assumption = nullptr);
+double length_factor_to(const TestData& data, const std::string& unit, std::string* assumption = nullptr);
 
 /// Multiplies node coordinates, coordinate-system origins and translational shape values by
 /// `factor` (> 0; rotations are unchanged) and records it in TestData::length_scale.
@@ -189,8 +187,8 @@ void scale_lengths(TestData* data, double factor);
 
 /// How the file's lengths become the model's: an explicit factor, or the model's length unit.
 struct LengthConversion {
-  std::string unit;   ///< the model's length unit (m, cm, mm, in, ft); empty: not given
-  double scale = 0;   ///< > 0: model length = file length × scale (wins over `unit`)
+  std::string unit;  ///< the model's length unit (m, cm, mm, in, ft); empty: not given
+  double scale = 0;  ///< > 0: model length = file length × scale (wins over `unit`)
 };
 
 /// Applies `conversion` with scale_lengths(): `scale` if set, else `unit` (via
@@ -204,7 +202,7 @@ std::string convert_lengths(TestData* data, const LengthConversion& conversion, 
 enum class NodeMatchBy { Id, Coordinates };
 
 struct NodeMapOptions {
-  NodeMatchBy by = NodeMatchBy::Id;   ///< default: same node id
+  NodeMatchBy by = NodeMatchBy::Id;  ///< default: same node id
   /// Coordinates: the largest accepted distance, in model units (> 0). Default (unset):
   /// 1e-6 × the diagonal of the model's bounding box, i.e. coincident nodes only.
   std::optional<double> tolerance;
@@ -215,16 +213,16 @@ struct NodeMapOptions {
 /// The outcome for one test node.
 struct NodeMatch {
   long test_node = 0;
-  int model_node = -1;        ///< index into Model, -1 if unmatched
-  double distance = 0;        ///< to the matched (or, if unmatched, nearest) model node;
-                              ///< NaN when the test node has no coordinates
-  std::string reason;         ///< why it is unmatched
+  int model_node = -1;  ///< index into Model, -1 if unmatched
+  double distance = 0;  ///< to the matched (or, if unmatched, nearest) model node;
+                        ///< NaN when the test node has no coordinates
+  std::string reason;   ///< why it is unmatched
 };
 
 struct NodeMapping {
-  std::vector<NodeMatch> matches;   ///< one per test node, in TestData::shape_node_ids() order
+  std::vector<NodeMatch> matches;  ///< one per test node, in TestData::shape_node_ids() order
   NodeMatchBy by = NodeMatchBy::Id;
-  double tolerance = 0;             ///< the distance used (coordinates)
+  double tolerance = 0;  ///< the distance used (coordinates)
   int num_matched() const;
   /// "12 of 14 test nodes matched ...", then one line per unmatched node with its reason.
   std::string report() const;

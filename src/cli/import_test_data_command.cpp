@@ -3,7 +3,6 @@
 // map onto the model; --csv writes the modes in the plain CSV form.
 
 #include <CLI/CLI.hpp>
-
 #include <cmath>
 #include <cstdio>
 
@@ -44,8 +43,8 @@ void print_contents(const TestData& data) {
                 data.header->description.c_str(), data.header->file_program.c_str(), data.header->file_written.c_str());
   if (data.units)
     std::printf("units (164): code %d '%s'; per SI unit: %g length, %g force, %g temperature units (offset %g)\n",
-                data.units->code, data.units->description.c_str(), data.units->length_factor,
-                data.units->force_factor, data.units->temperature_factor, data.units->temperature_offset);
+                data.units->code, data.units->description.c_str(), data.units->length_factor, data.units->force_factor,
+                data.units->temperature_factor, data.units->temperature_offset);
   else if (data.format == TestData::Format::Uff)
     std::printf("units: no dataset 164 (unknown; taken as SI only when converted to a named unit)\n");
   if (!data.coordinate_systems.empty()) {
@@ -59,8 +58,8 @@ void print_contents(const TestData& data) {
       lo = lo.cwiseMin(n.coordinates);
       hi = hi.cwiseMax(n.coordinates);
     }
-    std::printf("nodes: %zu, global frame, from [%g, %g, %g] to [%g, %g, %g]\n", data.nodes.size(), lo[0], lo[1],
-                lo[2], hi[0], hi[1], hi[2]);
+    std::printf("nodes: %zu, global frame, from [%g, %g, %g] to [%g, %g, %g]\n", data.nodes.size(), lo[0], lo[1], lo[2],
+                hi[0], hi[1], hi[2]);
   } else {
     std::printf("nodes: no geometry\n");
   }
@@ -72,8 +71,8 @@ void print_contents(const TestData& data) {
     if (m.damping_ratio) std::snprintf(damping, sizeof(damping), "%.4g", *m.damping_ratio);
     const std::string source = m.dataset ? "dataset " + std::to_string(m.dataset) + ", line " + std::to_string(m.line)
                                          : "line " + std::to_string(m.line);
-    std::printf("  %6d %12.4f %9s %6d %11d  %s%s\n", m.number, m.frequency_hz, damping, num_nodes(m),
-                m.values_per_node, source.c_str(), m.from_complex ? " (complex, made real)" : "");
+    std::printf("  %6d %12.4f %9s %6d %11d  %s%s\n", m.number, m.frequency_hz, damping, num_nodes(m), m.values_per_node,
+                source.c_str(), m.from_complex ? " (complex, made real)" : "");
   }
 }
 

@@ -13,7 +13,8 @@ TestData read_for(const TestDataSelection& s) {
     return read_test_data(s.path);
   } catch (const ProblemError& e) {
     const std::string context = " (read for 'test_data' at " + s.problem_file + ":" + std::to_string(s.file_line) + ")";
-    if (e.line() == 0) throw ProblemError(s.problem_file, s.file_line, e.message() + " (the path is relative to this file's folder)");
+    if (e.line() == 0)
+      throw ProblemError(s.problem_file, s.file_line, e.message() + " (the path is relative to this file's folder)");
     throw ProblemError(e.file(), e.line(), e.message() + context);
   }
 }
@@ -27,14 +28,14 @@ std::vector<const TestMode*> select_modes(const TestDataSelection& s, const Test
     return selected;
   }
   for (size_t k = 0; k < s.modes.size(); ++k) {
-    const auto it = std::find_if(data.modes.begin(), data.modes.end(),
-                                 [&](const TestMode& m) { return m.number == s.modes[k]; });
+    const auto it =
+        std::find_if(data.modes.begin(), data.modes.end(), [&](const TestMode& m) { return m.number == s.modes[k]; });
     if (it == data.modes.end()) {
       std::string known;
       for (const TestMode& m : data.modes) known += (known.empty() ? "" : ", ") + std::to_string(m.number);
       throw ProblemError(s.problem_file, s.mode_lines[k],
-                         "mode " + std::to_string(s.modes[k]) + " is not in " + s.path + "; its modes: " +
-                             (known.empty() ? "none" : known));
+                         "mode " + std::to_string(s.modes[k]) + " is not in " + s.path +
+                             "; its modes: " + (known.empty() ? "none" : known));
     }
     selected.push_back(&*it);
   }
@@ -85,7 +86,8 @@ void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
     if (!(m->frequency_hz > 0))
       throw ProblemError(s.problem_file, s.line,
                          "mode " + std::to_string(m->number) + " of " + s.path + " (line " + std::to_string(m->line) +
-                             ") has frequency " + number_text(m->frequency_hz) + " Hz; measured frequencies must be positive");
+                             ") has frequency " + number_text(m->frequency_hz) +
+                             " Hz; measured frequencies must be positive");
     measured.frequency_hz = m->frequency_hz;
     measured.shape.resize(static_cast<Eigen::Index>(problem->sensors.size()));
     for (size_t k = 0; k < problem->sensors.size(); ++k) {
@@ -105,9 +107,12 @@ void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
   const std::string file = s.path + ": ";
   if (!conversion.empty()) problem->warnings.push_back(file + conversion);
   for (const std::string& w : data.warnings) problem->warnings.push_back(file + w);
-  if (mapping.num_matched() < static_cast<int>(mapping.matches.size())) problem->warnings.push_back(file + mapping.report());
+  if (mapping.num_matched() < static_cast<int>(mapping.matches.size()))
+    problem->warnings.push_back(file + mapping.report());
   if (!dropped.empty())
-    problem->warnings.push_back(file + std::to_string(dropped.size()) + " sensor DOF(s) dropped because not every chosen mode has a value there, e.g. " + dropped.front());
+    problem->warnings.push_back(file + std::to_string(dropped.size()) +
+                                " sensor DOF(s) dropped because not every chosen mode has a value there, e.g. " +
+                                dropped.front());
 }
 
 }  // namespace modalcal::detail

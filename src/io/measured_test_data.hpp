@@ -11,11 +11,11 @@ namespace modalcal::detail {
 
 /// What `measured: test_data:` asks for, with the problem-file lines of its keys for messages.
 struct TestDataSelection {
-  std::string problem_file;        ///< the file the section is written in
-  int line = 0;                    ///< of 'test_data'
-  std::string path;                ///< the test-data file, resolved against problem_file's folder
+  std::string problem_file;  ///< the file the section is written in
+  int line = 0;              ///< of 'test_data'
+  std::string path;          ///< the test-data file, resolved against problem_file's folder
   int file_line = 0;
-  std::vector<int> modes;          ///< mode numbers in the file; empty: all, in file order
+  std::vector<int> modes;  ///< mode numbers in the file; empty: all, in file order
   std::vector<int> mode_lines;
   NodeMapOptions map;
   std::vector<int> directions{0, 1, 2};  ///< global translations measured at every matched node

@@ -75,8 +75,7 @@ TestData read_test_csv(const std::string& path) {
       std::string compact = lower(text);
       compact.erase(std::remove_if(compact.begin(), compact.end(), [](char c) { return c == ' ' || c == '\t'; }),
                     compact.end());
-      if (compact != kHeader)
-        fail("expected the header line '" + std::string(kHeader) + "', found '" + text + "'");
+      if (compact != kHeader) fail("expected the header line '" + std::string(kHeader) + "', found '" + text + "'");
       header_seen = true;
       continue;
     }
@@ -113,7 +112,8 @@ TestData read_test_csv(const std::string& path) {
     m.values.push_back({node, component, value});
     if (component >= 3) m.values_per_node = 6;
   }
-  if (!header_seen) throw ProblemError(path, line_number, "the file is empty; expected the header line '" + std::string(kHeader) + "'");
+  if (!header_seen)
+    throw ProblemError(path, line_number, "the file is empty; expected the header line '" + std::string(kHeader) + "'");
   if (data.modes.empty()) throw ProblemError(path, line_number, "no data rows after the header");
   for (TestMode& m : data.modes)
     std::sort(m.values.begin(), m.values.end(), [](const TestShapeValue& a, const TestShapeValue& b) {

@@ -2,15 +2,14 @@
 // with coordinates and shapes rotated into the global frame. Record layouts follow the I-DEAS
 // universal-file descriptions; the checks follow what real exports (LMS Test.Lab, Permas,
 // Simcenter, operational-modal-analysis tools) actually write.
+#include <Eigen/Geometry>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <complex>
 #include <fstream>
 #include <map>
 #include <set>
-
-#include <Eigen/Geometry>
-#include <Eigen/LU>
 
 #include "io/text_util.hpp"
 #include "io/uff_records.hpp"
@@ -29,18 +28,22 @@ using detail::trim;
 
 const char* dataset_name(int number) {
   static const std::map<int, const char*> names = {
-      {15, "nodes"}, {18, "coordinate systems"}, {55, "data at nodes"},
-      {58, "function data (FRFs, time histories)"}, {82, "trace lines"}, {151, "header"},
-      {164, "units"}, {2400, "model header"}, {2411, "nodes"}, {2412, "elements"},
-      {2414, "analysis data"}, {2420, "coordinate systems"}, {2467, "groups"}, {2477, "groups"}};
+      {15, "nodes"},           {18, "coordinate systems"},
+      {55, "data at nodes"},   {58, "function data (FRFs, time histories)"},
+      {82, "trace lines"},     {151, "header"},
+      {164, "units"},          {2400, "model header"},
+      {2411, "nodes"},         {2412, "elements"},
+      {2414, "analysis data"}, {2420, "coordinate systems"},
+      {2467, "groups"},        {2477, "groups"}};
   const auto it = names.find(number);
   return it == names.end() ? "unknown to this reader" : it->second;
 }
 
 const char* analysis_name(int type) {
-  static const char* const names[] = {"unknown", "static", "normal modes", "complex eigenvalues (first order)",
-                                      "transient", "frequency response", "buckling",
-                                      "complex eigenvalues (second order)"};
+  static const char* const names[] = {"unknown",      "static",
+                                      "normal modes", "complex eigenvalues (first order)",
+                                      "transient",    "frequency response",
+                                      "buckling",     "complex eigenvalues (second order)"};
   return type >= 0 && type <= 7 ? names[type] : "not a known type";
 }
 
@@ -56,7 +59,7 @@ struct PendingSystem {
 struct PendingMode {
   TestMode mode;
   bool is_complex = false;
-  std::string eigenvalue_note;   ///< how frequency and damping came from a complex eigenvalue
+  std::string eigenvalue_note;  ///< how frequency and damping came from a complex eigenvalue
   std::vector<long> nodes;
   std::vector<int> node_lines;
   std::vector<std::vector<double>> values;  ///< per node: NDV reals or NDV (re, im) pairs
@@ -118,14 +121,28 @@ TestData UffReader::read() {
     UffRecords r(path_, lines_, b);
     UffDatasetEntry entry{b.number, b.number_line, true, ""};
     switch (b.number) {
-      case 151: read_header(r, b); break;
-      case 164: read_units(r, b); break;
-      case 18: read_systems_18(r); break;
-      case 2420: read_systems_2420(r); break;
+      case 151:
+        read_header(r, b);
+        break;
+      case 164:
+        read_units(r, b);
+        break;
+      case 18:
+        read_systems_18(r);
+        break;
+      case 2420:
+        read_systems_2420(r);
+        break;
       case 15:
-      case 2411: read_nodes(r, b); break;
-      case 55: entry.note = read_dataset_55(r, b); break;
-      case 2414: entry.note = read_dataset_2414(r, b); break;
+      case 2411:
+        read_nodes(r, b);
+        break;
+      case 55:
+        entry.note = read_dataset_55(r, b);
+        break;
+      case 2414:
+        entry.note = read_dataset_2414(r, b);
+        break;
       default:
         entry.note = std::string(dataset_name(b.number)) + ": not needed for modal test data";
     }
@@ -146,7 +163,7 @@ void UffReader::read_header(UffRecords& r, const UffBlock& b) {
   }
   UffHeader h;
   h.line = b.number_line;
-  std::string* fields[] = {&h.model_name,    &h.description,  &h.database_program, &h.database_created,
+  std::string* fields[] = {&h.model_name,     &h.description,  &h.database_program, &h.database_created,
                            &h.database_saved, &h.file_program, &h.file_written};
   // Writers differ in how many of the seven text records they fill; the header is only shown.
   for (std::string* field : fields)
@@ -156,8 +173,8 @@ void UffReader::read_header(UffRecords& r, const UffBlock& b) {
 
 void UffReader::read_units(UffRecords& r, const UffBlock& b) {
   if (data_.units)
-    r.fail(b.number_line, "a second unit system; the first is at line " + std::to_string(data_.units->line) +
-                              " and a file has one");
+    r.fail(b.number_line,
+           "a second unit system; the first is at line " + std::to_string(data_.units->line) + " and a file has one");
   UffUnits u;
   u.line = b.number_line;
   // Record 1 is FORMAT(I10,20A1,I10): code, description, temperature mode, by column.
@@ -176,7 +193,10 @@ void UffReader::read_units(UffRecords& r, const UffBlock& b) {
   const std::vector<double> factors = r.numbers(3, "record 2 (length, force and temperature factors)");
   for (int k = 0; k < 3; ++k)
     if (!(factors[k] > 0))
-      r.fail(line2, std::string("record 2: the ") + (k == 0 ? "length" : k == 1 ? "force" : "temperature") +
+      r.fail(line2, std::string("record 2: the ") +
+                        (k == 0   ? "length"
+                         : k == 1 ? "force"
+                                  : "temperature") +
                         " factor must be positive, got " + number_text(factors[k]));
   u.length_factor = factors[0];
   u.force_factor = factors[1];
@@ -204,7 +224,8 @@ void UffReader::read_systems_18(UffRecords& r) {
     s.reference = static_cast<int>(h[2]);
     if (h[4] != 1)
       r.fail(s.system.line, "coordinate system " + std::to_string(s.system.id) + ": method of definition " +
-                                number_text(h[4]) + " is not read (only 1: origin, a point on +x, a point in the +xz plane)");
+                                number_text(h[4]) +
+                                " is not read (only 1: origin, a point on +x, a point in the +xz plane)");
     s.system.name = trim(r.text("record 2 (system name)"));
     const std::vector<double> p = r.numbers(9, "records 3-4 (origin, point on +x axis, point in the +xz plane)", 6);
     s.origin = Vec3(p[0], p[1], p[2]);
@@ -213,8 +234,9 @@ void UffReader::read_systems_18(UffRecords& r) {
     const Vec3 x = s.on_x - s.origin, v = s.in_xz - s.origin;
     const double scale = std::max(x.norm(), v.norm());
     if (!(x.norm() > 1e-12 * std::max(scale, 1.0)) || !(v.cross(x).norm() > 1e-9 * x.norm() * v.norm()))
-      r.fail(s.system.line, "coordinate system " + std::to_string(s.system.id) +
-                                ": its three points do not span a plane (coincident or collinear), so they define no axes");
+      r.fail(s.system.line,
+             "coordinate system " + std::to_string(s.system.id) +
+                 ": its three points do not span a plane (coincident or collinear), so they define no axes");
     add_system(s, r);
   }
 }
@@ -228,8 +250,7 @@ void UffReader::read_systems_2420(UffRecords& r) {
     s.system.line = r.line();
     // FORMAT(3I10) in the description; some writers add a fourth field.
     const size_t fields = std::clamp<size_t>(r.peek("record 3").size(), 3, 4);
-    const std::vector<double> h =
-        r.whole_numbers(static_cast<int>(fields), "record 3 (system label, type, color)");
+    const std::vector<double> h = r.whole_numbers(static_cast<int>(fields), "record 3 (system label, type, color)");
     s.system.id = static_cast<int>(h[0]);
     s.system.type = static_cast<int>(h[1]);
     s.system.name = trim(r.text("record 4 (system name)"));
@@ -239,9 +260,10 @@ void UffReader::read_systems_2420(UffRecords& r) {
     s.system.origin = Vec3(m[9], m[10], m[11]);
     const double error = (s.system.axes * s.system.axes.transpose() - Mat3::Identity()).cwiseAbs().maxCoeff();
     if (error > 1e-4 || s.system.axes.determinant() < 0)
-      r.fail(s.system.line, "coordinate system " + std::to_string(s.system.id) +
-                                ": rows 1-3 of the transformation matrix are not a right-handed rotation (|A Aᵀ - I| = " +
-                                number_text(error) + ", det = " + number_text(s.system.axes.determinant()) + ")");
+      r.fail(s.system.line,
+             "coordinate system " + std::to_string(s.system.id) +
+                 ": rows 1-3 of the transformation matrix are not a right-handed rotation (|A Aᵀ - I| = " +
+                 number_text(error) + ", det = " + number_text(s.system.axes.determinant()) + ")");
     add_system(s, r);
   }
 }
@@ -258,9 +280,11 @@ const CoordinateSystem& UffReader::resolve_system(int id) {
   PendingSystem& s = it->second;
   if (s.reference < 0) return systems_[id] = s.system;
   if (system_state_[id] == 1)
-    fail(18, s.system.line, "coordinate system " + std::to_string(id) + " is defined relative to itself through its reference systems");
+    fail(18, s.system.line,
+         "coordinate system " + std::to_string(id) + " is defined relative to itself through its reference systems");
   system_state_[id] = 1;
-  const CoordinateSystem& ref = cartesian_system(s.reference, "coordinate system " + std::to_string(id), 18, s.system.line);
+  const CoordinateSystem& ref =
+      cartesian_system(s.reference, "coordinate system " + std::to_string(id), 18, s.system.line);
   // Axes from the three points, in the reference system: x towards the +x point, y normal to
   // the plane of x and the +xz point, z = x × y (so the +xz point has z > 0).
   const Vec3 x = (s.on_x - s.origin).normalized();
@@ -281,14 +305,18 @@ const CoordinateSystem& UffReader::cartesian_system(int id, const std::string& u
   try {
     system = &resolve_system(id);
   } catch (const std::out_of_range&) {
-    fail(dataset, line, user + " refers to coordinate system " + std::to_string(id) +
-                            ", which no dataset 18 or 2420 in the file defines");
+    fail(dataset, line,
+         user + " refers to coordinate system " + std::to_string(id) +
+             ", which no dataset 18 or 2420 in the file defines");
   }
   if (system->type != 0)
-    fail(dataset, line, user + " uses coordinate system " + std::to_string(id) + " '" + system->name +
-                            "' (dataset " + std::to_string(system->dataset) + ", line " + std::to_string(system->line) +
-                            "), which is " + (system->type == 1 ? "cylindrical" : system->type == 2 ? "spherical" : "of unknown type " + std::to_string(system->type)) +
-                            "; only Cartesian systems are supported");
+    fail(dataset, line,
+         user + " uses coordinate system " + std::to_string(id) + " '" + system->name + "' (dataset " +
+             std::to_string(system->dataset) + ", line " + std::to_string(system->line) + "), which is " +
+             (system->type == 1   ? "cylindrical"
+              : system->type == 2 ? "spherical"
+                                  : "of unknown type " + std::to_string(system->type)) +
+             "; only Cartesian systems are supported");
   return *system;
 }
 
@@ -302,7 +330,8 @@ void UffReader::read_nodes(UffRecords& r, const UffBlock& b) {
       v = r.numbers(7, "node record (label, definition system, displacement system, color, x, y, z)");
       for (int k = 0; k < 4; ++k)
         if (v[k] != std::floor(v[k]))
-          r.fail(node.line, "node record: field " + std::to_string(k + 1) + " (" + number_text(v[k]) + ") should be a whole number");
+          r.fail(node.line, "node record: field " + std::to_string(k + 1) + " (" + number_text(v[k]) +
+                                ") should be a whole number");
     } else {
       v = r.whole_numbers(4, "record 1 (node label, export system, displacement system, color)");
       const std::vector<double> x = r.numbers(3, "record 2 (coordinates)");
@@ -323,7 +352,8 @@ void UffReader::read_nodes(UffRecords& r, const UffBlock& b) {
 
 std::string UffReader::skip_reason(UffRecords& r, int line, const ResultKind& kind) const {
   if (kind.analysis != 2 && kind.analysis != 3 && kind.analysis != 7)
-    return "analysis type " + std::to_string(kind.analysis) + " (" + analysis_name(kind.analysis) + ") holds no mode shape";
+    return "analysis type " + std::to_string(kind.analysis) + " (" + analysis_name(kind.analysis) +
+           ") holds no mode shape";
   if (kind.characteristic != 2 && kind.characteristic != 3)
     return "data characteristic " + std::to_string(kind.characteristic) +
            " is not a 3- or 6-component displacement vector (2 or 3), so it gives no directions";
@@ -333,8 +363,7 @@ std::string UffReader::skip_reason(UffRecords& r, int line, const ResultKind& ki
                      " components per node) but " + std::to_string(kind.values_per_node) +
                      " values per node (last field); the two disagree");
   if (kind.data_type != 2 && kind.data_type != 4 && kind.data_type != 5 && kind.data_type != 6)
-    r.fail(line, "data type " + std::to_string(kind.data_type) +
-                     " is neither real (2, 4) nor complex (5, 6)");
+    r.fail(line, "data type " + std::to_string(kind.data_type) + " is neither real (2, 4) nor complex (5, 6)");
   return "";
 }
 
@@ -356,9 +385,9 @@ void UffReader::read_mode_header(const std::vector<double>& reals, const ResultK
   const double omega = std::abs(lambda);
   m->mode.frequency_hz = omega / (2 * M_PI);
   if (omega > 0) m->mode.damping_ratio = -lambda.real() / omega;
-  m->eigenvalue_note = "frequency |λ|/2π and damping ratio -Re λ/|λ| from the eigenvalue λ = " +
-                       number_text(lambda.real()) + (lambda.imag() < 0 ? "" : "+") + number_text(lambda.imag()) +
-                       "i (taken as rad/s)";
+  m->eigenvalue_note =
+      "frequency |λ|/2π and damping ratio -Re λ/|λ| from the eigenvalue λ = " + number_text(lambda.real()) +
+      (lambda.imag() < 0 ? "" : "+") + number_text(lambda.imag()) + "i (taken as rad/s)";
 }
 
 void UffReader::read_node_values(UffRecords& r, const ResultKind& kind, int kind_line, PendingMode* m) const {
@@ -371,10 +400,11 @@ void UffReader::read_node_values(UffRecords& r, const ResultKind& kind, int kind
     const int line = r.line();
     const long node = static_cast<long>(r.whole_numbers(1, "node number")[0]);
     if (!seen.insert(node).second) r.fail(line, "node " + std::to_string(node) + " appears twice in this mode");
-    m->values.push_back(r.numbers(count, "values of node " + std::to_string(node) + " (" +
-                                             std::to_string(kind.values_per_node) + (is_complex ? " complex" : "") +
-                                             " values per node, by the record at line " + std::to_string(kind_line) + ")",
-                                 per_line));
+    m->values.push_back(r.numbers(count,
+                                  "values of node " + std::to_string(node) + " (" +
+                                      std::to_string(kind.values_per_node) + (is_complex ? " complex" : "") +
+                                      " values per node, by the record at line " + std::to_string(kind_line) + ")",
+                                  per_line));
     m->nodes.push_back(node);
     m->node_lines.push_back(line);
   }
@@ -395,7 +425,9 @@ std::string UffReader::read_dataset_55(UffRecords& r, const UffBlock& b) {
   const int ints_line = r.line();
   const std::vector<double> first = r.peek("record 7");
   if (first.size() < 2 || first[0] < 2 || first[0] != std::floor(first[0]))
-    r.fail(ints_line, "record 7 must start with the number of integer values (at least 2: load case, mode number) and of real values");
+    r.fail(ints_line,
+           "record 7 must start with the number of integer values (at least 2: load case, mode number) and of real "
+           "values");
   const std::vector<double> ints =
       r.whole_numbers(2 + static_cast<int>(first[0]), "record 7 (value counts, load case, mode number)", 8);
   const int num_reals = static_cast<int>(ints[1]);
@@ -404,7 +436,11 @@ std::string UffReader::read_dataset_55(UffRecords& r, const UffBlock& b) {
     r.fail(ints_line, "record 7 gives " + std::to_string(num_reals) + " real values; " + analysis_name(kind.analysis) +
                           " need at least " + std::to_string(needed));
   m.mode.number = static_cast<int>(ints[3]);
-  const std::vector<double> reals = r.numbers(num_reals, "record 8 (" + std::string(kind.analysis == 2 ? "frequency, modal mass, damping" : "eigenvalue, modal A and B") + ")", 6);
+  const std::vector<double> reals = r.numbers(
+      num_reals,
+      "record 8 (" + std::string(kind.analysis == 2 ? "frequency, modal mass, damping" : "eigenvalue, modal A and B") +
+          ")",
+      6);
   read_mode_header(reals, kind, 0, 0, 2, &m);
   m.mode.values_per_node = kind.values_per_node;
   read_node_values(r, kind, kind_line, &m);
@@ -421,18 +457,25 @@ std::string UffReader::read_dataset_2414(UffRecords& r, const UffBlock& b) {
   m.mode.description = trim(r.text("record 2 (analysis dataset name)"));
   const int location = static_cast<int>(r.whole_numbers(1, "record 3 (dataset location)")[0]);
   if (location != 1)
-    return "data location " + std::to_string(location) + " (not at nodes: 2 on elements, 3 at element nodes, 5 at points)";
+    return "data location " + std::to_string(location) +
+           " (not at nodes: 2 on elements, 3 at element nodes, 5 at points)";
   for (int k = 1; k <= 5; ++k) r.text("ID line " + std::to_string(k));
   const int kind_line = r.line();
   const ResultKind kind = result_kind(r.whole_numbers(
       6, "record 9 (model type, analysis type, data characteristic, result type, data type, values per node)"));
   if (std::string reason = skip_reason(r, kind_line, kind); !reason.empty()) return reason;
-  const std::vector<double> ints = r.whole_numbers(10, "records 10-11 (design set, iteration, solution set, boundary condition, load set, mode, time step, frequency, creation option, number retained)", 8);
+  const std::vector<double> ints =
+      r.whole_numbers(10,
+                      "records 10-11 (design set, iteration, solution set, boundary condition, load set, mode, time "
+                      "step, frequency, creation option, number retained)",
+                      8);
   m.mode.number = static_cast<int>(ints[5]);
-  const std::vector<double> reals = r.numbers(12, "records 12-13 (time, frequency, eigenvalue, modal mass, damping, complex eigenvalue, modal A and B)", 6);
+  const std::vector<double> reals = r.numbers(
+      12, "records 12-13 (time, frequency, eigenvalue, modal mass, damping, complex eigenvalue, modal A and B)", 6);
   read_mode_header(reals, kind, 1, 6, 4, &m);
   // Some writers leave the frequency field empty and give the eigenvalue ω².
-  if (kind.analysis == 2 && m.mode.frequency_hz == 0 && reals[2] > 0) m.mode.frequency_hz = std::sqrt(reals[2]) / (2 * M_PI);
+  if (kind.analysis == 2 && m.mode.frequency_hz == 0 && reals[2] > 0)
+    m.mode.frequency_hz = std::sqrt(reals[2]) / (2 * M_PI);
   m.mode.values_per_node = kind.values_per_node;
   read_node_values(r, kind, kind_line, &m);
   if (m.nodes.empty()) return "mode " + std::to_string(m.mode.number) + " has no node values";
@@ -457,9 +500,11 @@ void UffReader::resolve_modes() {
     if (m.is_complex) {
       Eigen::VectorXcd shape(static_cast<Eigen::Index>(m.nodes.size() * n));
       for (size_t k = 0; k < m.nodes.size(); ++k)
-        for (int c = 0; c < n; ++c) shape[static_cast<Eigen::Index>(k * n + c)] = {m.values[k][2 * c], m.values[k][2 * c + 1]};
+        for (int c = 0; c < n; ++c)
+          shape[static_cast<Eigen::Index>(k * n + c)] = {m.values[k][2 * c], m.values[k][2 * c + 1]};
       const RealShape real = best_real_shape(shape);
-      for (size_t k = 0; k < m.nodes.size(); ++k) real_values[k] = real.values.segment(static_cast<Eigen::Index>(k * n), n);
+      for (size_t k = 0; k < m.nodes.size(); ++k)
+        real_values[k] = real.values.segment(static_cast<Eigen::Index>(k * n), n);
       m.mode.from_complex = true;
       m.mode.phase_collinearity = real.collinearity;
       data_.warnings.push_back(
@@ -481,7 +526,8 @@ void UffReader::resolve_modes() {
       } else {
         const TestNode& node = data_.nodes[it->second];
         to_global = cartesian_system(node.displacement_system, "node " + std::to_string(node.id), m.mode.dataset,
-                                     m.node_lines[k]).axes.transpose();
+                                     m.node_lines[k])
+                        .axes.transpose();
       }
       // Translations and rotations are both vectors in the displacement system.
       for (int part = 0; part < n; part += 3) {
@@ -500,11 +546,12 @@ void UffReader::resolve_modes() {
   for (size_t k = 0; k < std::min<size_t>(5, without_geometry.size()); ++k)
     examples += (k ? ", " : "") + std::to_string(without_geometry[k]);
   if (without_geometry.size() > 5) examples += ", ...";
-  data_.warnings.push_back(
-      data_.nodes.empty()
-          ? "the file has no node geometry (dataset 15 or 2411): shape values are taken as global components, and nodes can be mapped by id only"
-          : std::to_string(without_geometry.size()) + " node(s) with shape values have no geometry (dataset 15 or 2411): " +
-                examples + "; their values are taken as global components");
+  data_.warnings.push_back(data_.nodes.empty()
+                               ? "the file has no node geometry (dataset 15 or 2411): shape values are taken as global "
+                                 "components, and nodes can be mapped by id only"
+                               : std::to_string(without_geometry.size()) +
+                                     " node(s) with shape values have no geometry (dataset 15 or 2411): " + examples +
+                                     "; their values are taken as global components");
 }
 
 void UffReader::number_modes_uniquely() {

@@ -26,7 +26,8 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
   numbers->clear();
   std::string s = line;
   // Fortran writes double precision as 1.0D+00; no other letter belongs in a numeric record.
-  std::replace_if(s.begin(), s.end(), [](char c) { return c == 'D' || c == 'd'; }, 'E');
+  std::replace_if(
+      s.begin(), s.end(), [](char c) { return c == 'D' || c == 'd'; }, 'E');
   size_t i = 0;
   while (true) {
     while (i < s.size() && is_blank(s[i])) ++i;
@@ -66,23 +67,24 @@ std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::
       throw ProblemError(file, i + 1, message);
     }
     const int open = i++;
-    if (i >= n)
-      throw ProblemError(file, open + 1, "the file ends after a '-1' line; a dataset number should follow");
+    if (i >= n) throw ProblemError(file, open + 1, "the file ends after a '-1' line; a dataset number should follow");
     const std::string id = trim(lines[i]).substr(0, trim(lines[i]).find_first_of(" \t"));
     UffBlock block;
     block.number_line = i + 1;
     const auto [ptr, ec] = std::from_chars(id.data(), id.data() + id.size(), block.number);
     if (ec != std::errc() || id.empty() || block.number <= 0)
-      throw ProblemError(file, i + 1, "expected a dataset number after the '-1' at line " +
-                                          std::to_string(open + 1) + ", found '" + excerpt(lines[i]) + "'");
+      throw ProblemError(file, i + 1,
+                         "expected a dataset number after the '-1' at line " + std::to_string(open + 1) + ", found '" +
+                             excerpt(lines[i]) + "'");
     if (ptr != id.data() + id.size())
-      throw ProblemError(file, i + 1, "dataset " + id + " is binary ('" + id +
-                                          "'), which is not read; export the file as ASCII");
+      throw ProblemError(file, i + 1,
+                         "dataset " + id + " is binary ('" + id + "'), which is not read; export the file as ASCII");
     block.first = ++i;
     while (i < n && !is_delimiter(lines[i])) ++i;
     if (i >= n)
       throw ProblemError(file, block.number_line,
-                         "dataset " + std::to_string(block.number) + " starting here has no closing '-1' line before the end of the file (line " +
+                         "dataset " + std::to_string(block.number) +
+                             " starting here has no closing '-1' line before the end of the file (line " +
                              std::to_string(n) + "); the file may be truncated");
     block.end = i++;
     blocks.push_back(block);
@@ -99,8 +101,7 @@ void UffRecords::fail(int line, const std::string& message) const {
 
 std::string UffRecords::text(const std::string& what) {
   if (at_end())
-    fail(line(), "the dataset ends (its closing '-1' is here) where " + what +
-                     " should be; the file may be truncated");
+    fail(line(), "the dataset ends (its closing '-1' is here) where " + what + " should be; the file may be truncated");
   std::string s = lines_[next_++];
   while (!s.empty() && is_blank(s.back())) s.pop_back();
   return s;
@@ -109,8 +110,7 @@ std::string UffRecords::text(const std::string& what) {
 std::vector<double> UffRecords::peek(const std::string& what) const {
   std::vector<double> row;
   std::string bad;
-  if (!at_end() && !parse_numbers(lines_[next_], &row, &bad))
-    fail(line(), what + ": '" + bad + "' is not a number");
+  if (!at_end() && !parse_numbers(lines_[next_], &row, &bad)) fail(line(), what + ": '" + bad + "' is not a number");
   return row;
 }
 
@@ -122,12 +122,12 @@ std::vector<double> UffRecords::numbers(int count, const std::string& what, int 
     const size_t remaining = static_cast<size_t>(count) - out.size();
     if (at_end())
       fail(line(), "the dataset ends (its closing '-1' is here) where " + what + " should " +
-                       (out.empty() ? "be" : "continue (" + std::to_string(out.size()) + " of " +
-                                                 std::to_string(count) + " numbers read)") +
+                       (out.empty() ? "be"
+                                    : "continue (" + std::to_string(out.size()) + " of " + std::to_string(count) +
+                                          " numbers read)") +
                        "; the file may be truncated or a count in the dataset be wrong");
     const int at = line();
-    if (!parse_numbers(lines_[next_++], &row, &bad))
-      fail(at, what + ": '" + bad + "' is not a number");
+    if (!parse_numbers(lines_[next_++], &row, &bad)) fail(at, what + ": '" + bad + "' is not a number");
     const size_t least = std::min(full, remaining);
     if (row.size() < least || row.size() > remaining) {
       const size_t expected = row.size() < least ? least : remaining;

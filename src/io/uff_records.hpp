@@ -14,8 +14,8 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
 /// One dataset: its number and the range of file lines between its "-1" delimiters.
 struct UffBlock {
   int number = 0;
-  int number_line = 0;    ///< 1-based line of the dataset number
-  int first = 0, end = 0; ///< 0-based indices of its records: [first, end)
+  int number_line = 0;     ///< 1-based line of the dataset number
+  int first = 0, end = 0;  ///< 0-based indices of its records: [first, end)
 };
 
 /// Splits `lines` into datasets. \throws ProblemError for a dataset without its closing "-1",
