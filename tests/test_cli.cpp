@@ -152,5 +152,32 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   for (const auto& m : j["modes"]) EXPECT_GT(m["mac"].get<double>(), 0.999);
 }
 
+TEST(Cli, ImportTestDataPrintsTheFileAndMapsOntoAProblem) {
+  const std::string uff = testing::SourcePath("tests/data/uff/uff55_translation.uff");
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  const std::string csv = WriteTempFile("modes.csv", "");
+  const CliRun run = RunCli("import-test-data " + uff + " --problem " + problem + " --csv " + csv);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const char* expected : {"line     21     55  read", "modes: 3", "12.0000", "4 of 4 test nodes matched a model node by id",
+                               "no node geometry"})
+    EXPECT_NE(run.output.find(expected), std::string::npos) << expected << " not in\n" << run.output;
+  std::istringstream lines(ReadFile(csv));
+  int rows = 0;
+  for (std::string line; std::getline(lines, line);) ++rows;
+  EXPECT_EQ(rows, 1 + 3 * 4 * 3);  // header + 3 modes × 4 nodes × 3 directions
+}
+
+TEST(Cli, ImportTestDataNamesTheBadLineAndKeepsInputs) {
+  const std::string uff = WriteTempFile("bad.uff", "    -1\n    55\nNONE\n");
+  const CliRun bad = RunCli("import-test-data " + uff);
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find(uff + ":2: dataset 55 starting here has no closing '-1'"), std::string::npos) << bad.output;
+  const std::string good = WriteTempFile("good.uff", ReadFile(testing::SourcePath("tests/data/uff/uff55_translation.uff")));
+  const CliRun overwrite = RunCli("import-test-data " + good + " --csv " + good);
+  EXPECT_EQ(overwrite.exit_code, 2) << overwrite.output;
+  EXPECT_NE(overwrite.output.find("refusing to write"), std::string::npos) << overwrite.output;
+  EXPECT_EQ(ReadFile(good), ReadFile(testing::SourcePath("tests/data/uff/uff55_translation.uff")));
+}
+
 }  // namespace
 }  // namespace modalcal

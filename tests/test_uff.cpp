@@ -4,6 +4,7 @@
 // Expected values were read by eye from the sample files; line numbers are the files' own.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <filesystem>
@@ -541,6 +542,23 @@ TEST(UffMapping, ByCoordinatesWithUnmatchedAndContestedPoints) {
       << report;
 }
 
+TEST(UffMapping, GeometryOnlyFileMapsItsNodesByCoordinates) {
+  // The Test.Lab geometry has 36 nodes and no modes; a model holding the first 30 (other ids).
+  const TestData d = read_test_data(Sample("testlab_geometry_151_164_18_15_82.uff"));
+  Model model;
+  for (long id = 1; id <= 30; ++id) model.add_node(1000 + id, d.find_node(id)->coordinates);
+  NodeMapOptions options;
+  options.by = NodeMatchBy::Coordinates;
+  const NodeMapping map = map_test_nodes(d, model, options);
+  ASSERT_EQ(map.matches.size(), 36u);
+  EXPECT_EQ(map.num_matched(), 30);
+  for (int k = 0; k < 30; ++k) EXPECT_EQ(model.node_ids[map.matches[k].model_node], 1001 + k);
+  // Node 31 at (-2.4, -0.9, 0) is 0.05 from node 1 at (-2.4, -0.95, 0).
+  EXPECT_EQ(map.matches[30].test_node, 31);
+  EXPECT_NE(map.matches[30].reason.find("the nearest model node, 1001, is 0.05 away"), std::string::npos)
+      << map.matches[30].reason;
+}
+
 TEST(UffMapping, DefaultToleranceTakesCoincidentNodesOnly) {
   const TestData d = TestNodes({{7, Vec3(1, 1, 0)}, {8, Vec3(1, 1, 1e-3)}});
   NodeMapOptions options;
@@ -715,6 +733,41 @@ TEST(UffProblem, AnExplicitScaleAndMappingById) {
   for (size_t k = 0; k < 4; ++k) EXPECT_EQ(p.model.node_ids[p.sensors[k].node], 11 + static_cast<long>(k));
   ASSERT_EQ(p.measured.size(), 2u);
   EXPECT_EQ(p.measured[0].shape, (Vector(4) << 0.2, 0.8, 1.4, 2.0).finished());
+}
+
+TEST(UffProblem, SyntheticModesWrittenAsCsvComeBackThroughAProblemFile) {
+  const std::string model = testing::kEveryParameterKindModel;
+  const Problem truth = load_problem(WriteTempFile("every.yaml", model));
+  TestData csv;
+  for (size_t k = 0; k < truth.measured.size(); ++k) {
+    TestMode m;
+    m.number = static_cast<int>(k + 1);
+    m.frequency_hz = truth.measured[k].frequency_hz;
+    for (size_t i = 0; i < truth.sensors.size(); ++i)
+      m.values.push_back({truth.model.node_ids[truth.sensors[i].node], truth.sensors[i].component,
+                          truth.measured[k].shape[static_cast<Eigen::Index>(i)]});
+    csv.modes.push_back(m);
+  }
+  write_test_csv(csv, WriteTempFile("synthetic.csv", ""));
+  // The same model, its sensors and measured modes replaced by the CSV.
+  const size_t from = model.find("sensors:"), to = model.find("options:");
+  const std::string text = model.substr(0, from) + "measured:\n  test_data: {file: synthetic.csv}\n" + model.substr(to);
+  const Problem p = load_problem(WriteTempFile("from_csv.yaml", text));
+  ASSERT_EQ(p.measured.size(), truth.measured.size());
+  ASSERT_EQ(p.sensors.size(), truth.sensors.size());
+  for (size_t k = 0; k < p.measured.size(); ++k) {
+    EXPECT_EQ(p.measured[k].frequency_hz, truth.measured[k].frequency_hz);
+    for (size_t i = 0; i < p.sensors.size(); ++i) {
+      const auto same = std::find_if(truth.sensors.begin(), truth.sensors.end(), [&](const Sensor& s) {
+        return s.node == p.sensors[i].node && s.component == p.sensors[i].component;
+      });
+      ASSERT_NE(same, truth.sensors.end()) << p.sensors[i].label;
+      EXPECT_EQ(p.measured[k].shape[static_cast<Eigen::Index>(i)],
+                truth.measured[k].shape[same - truth.sensors.begin()]);
+    }
+  }
+  // The 'at' sensor measured y and z only: its x is not in the file.
+  EXPECT_TRUE(HasWarning(p.warnings, "1 sensor DOF(s) dropped"));
 }
 
 TEST(UffProblem, ErrorsNameTheRightFileAndLine) {

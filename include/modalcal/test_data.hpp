@@ -133,6 +133,8 @@ struct TestData {
   const TestNode* find_node(long id) const;
   /// Ids of the nodes that carry shape values, in order of first appearance.
   std::vector<long> shape_node_ids() const;
+  /// Ids of all test nodes: the geometry's in file order, then shape_node_ids() without geometry.
+  std::vector<long> node_ids() const;
 };
 
 /// Reads a universal file (ASCII datasets; fixed-width Fortran fields or whitespace-separated
@@ -220,7 +222,7 @@ struct NodeMatch {
 };
 
 struct NodeMapping {
-  std::vector<NodeMatch> matches;  ///< one per test node, in TestData::shape_node_ids() order
+  std::vector<NodeMatch> matches;  ///< one per test node, in TestData::node_ids() order
   NodeMatchBy by = NodeMatchBy::Id;
   double tolerance = 0;  ///< the distance used (coordinates)
   int num_matched() const;
@@ -228,7 +230,7 @@ struct NodeMapping {
   std::string report() const;
 };
 
-/// Maps the nodes that carry shape values onto model nodes: by equal id, or by the nearest
+/// Maps every test node (TestData::node_ids()) onto a model node: by equal id, or by the nearest
 /// model node within the tolerance (coordinates in the model's units: see scale_lengths()).
 /// A model node claimed by two test nodes goes to the nearer one; the other is unmatched.
 /// \throws std::invalid_argument if `options` is invalid.

@@ -58,6 +58,7 @@ void print_kkt(const KktRecord& r) {
 
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  print_warnings(problem);
   ObjectiveOptions objective_options;
   objective_options.regularization = args.regularization;
   Objective objective(problem, objective_options);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iostream>
 
 #include "modalcal/output.hpp"
 
@@ -101,6 +102,10 @@ ReducedOptions::Method parse_method(const std::string& name) {
   if (name == "reduced-gauss-newton") return ReducedOptions::Method::GaussNewton;
   if (name == "reduced-newton") return ReducedOptions::Method::Newton;
   throw InputError("--method " + name + ": expected one of reduced-lbfgs, reduced-gauss-newton, reduced-newton");
+}
+
+void print_warnings(const Problem& problem) {
+  for (const std::string& w : problem.warnings) std::cerr << "warning: " << w << "\n";
 }
 
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {

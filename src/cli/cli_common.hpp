@@ -32,6 +32,9 @@ std::vector<std::string> method_names();
 std::vector<std::string> calibration_method_names();
 ReducedOptions::Method parse_method(const std::string& name);
 
+/// Prints each of problem.warnings (e.g. unmatched test nodes) as "warning: ..." to stderr.
+void print_warnings(const Problem& problem);
+
 /// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
 

@@ -86,7 +86,7 @@ int run_import(const ImportArgs& args) {
   if (!args.problem.empty()) {
     const Problem problem = load_problem(args.problem);
     inputs.push_back(args.problem);
-    for (const std::string& w : problem.warnings) std::printf("problem warning: %s\n", w.c_str());
+    print_warnings(problem);
     conversion = convert_lengths(&data, args.lengths, problem.units);
     NodeMapOptions options;
     options.by = args.map == "coordinates" ? NodeMatchBy::Coordinates : NodeMatchBy::Id;

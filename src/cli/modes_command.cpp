@@ -26,6 +26,7 @@ struct ModesArgs {
 
 int run_modes(const ModesArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  print_warnings(problem);
   const Vector p = choose_parameters(&problem, args.params);
   ParametricSystem system(problem.model, problem.parameter_targets());
   SparseMatrix K, M;

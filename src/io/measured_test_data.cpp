@@ -52,6 +52,13 @@ void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
   TestData chosen = data;  // the mapping covers the nodes of the chosen modes only
   chosen.modes.clear();
   for (const TestMode* m : selected) chosen.modes.push_back(*m);
+  const std::vector<long> shape_nodes = chosen.shape_node_ids();
+  chosen.nodes.erase(std::remove_if(chosen.nodes.begin(), chosen.nodes.end(),
+                                    [&](const TestNode& n) {
+                                      return std::find(shape_nodes.begin(), shape_nodes.end(), n.id) ==
+                                             shape_nodes.end();
+                                    }),
+                     chosen.nodes.end());
   NodeMapping mapping;
   try {
     mapping = map_test_nodes(chosen, problem->model, s.map);

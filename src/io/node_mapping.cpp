@@ -76,7 +76,7 @@ NodeMapping map_test_nodes(const TestData& data, const Model& model, const NodeM
   std::unordered_map<long, int> model_index;
   for (int v = 0; v < model.num_nodes(); ++v) model_index.emplace(model.node_ids[v], v);
 
-  for (long id : data.shape_node_ids()) {
+  for (long id : data.node_ids()) {
     NodeMatch match;
     match.test_node = id;
     const auto g = geometry.find(id);

@@ -50,6 +50,16 @@ std::vector<long> TestData::shape_node_ids() const {
   return ids;
 }
 
+std::vector<long> TestData::node_ids() const {
+  std::vector<long> ids;
+  std::set<long> seen;
+  for (const TestNode& n : nodes)
+    if (seen.insert(n.id).second) ids.push_back(n.id);
+  for (long id : shape_node_ids())
+    if (seen.insert(id).second) ids.push_back(id);
+  return ids;
+}
+
 TestData read_test_data(const std::string& path) {
   std::string extension = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   std::transform(extension.begin(), extension.end(), extension.begin(),
