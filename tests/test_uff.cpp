@@ -770,6 +770,29 @@ TEST(UffProblem, SyntheticModesWrittenAsCsvComeBackThroughAProblemFile) {
   EXPECT_TRUE(HasWarning(p.warnings, "1 sensor DOF(s) dropped"));
 }
 
+TEST(UffProblem, PermasShellModesOnASolidPlateMappedByCoordinates) {
+  // The Permas nodes are a 21 × 21 grid on the unit square at z = 0: the bottom face of a
+  // 20 × 20 × 1 hex plate.
+  const std::string text = R"(units: m, N, s
+mesh:
+  element_size: 0.05
+  boxes:
+    - {block: plate, min: [0, 0, 0], max: [1, 1, 0.02]}
+blocks:
+  plate: {E: 2.1e11, nu: 0.3, density: 7850}
+measured:
+  test_data: {file: )" + Sample("nodes2411_results2414.uff") +
+                           R"(, modes: [1, 2, 3], map: coordinates, directions: [z]}
+)";
+  const Problem p = load_problem(WriteTempFile("plate.yaml", text));
+  ASSERT_EQ(p.sensors.size(), 441u);
+  for (const Sensor& s : p.sensors) EXPECT_EQ(p.model.coordinates[s.node].z(), 0.0) << s.label;
+  ASSERT_EQ(p.measured.size(), 3u);
+  EXPECT_EQ(p.measured[1].frequency_hz, 2.34163);
+  EXPECT_EQ(p.measured[0].shape[0], -7.08571e-01);  // node 1, z, the first sensor
+  EXPECT_TRUE(p.warnings.empty()) << p.warnings.front();
+}
+
 TEST(UffProblem, ErrorsNameTheRightFileAndLine) {
   WriteTempFile("bar_test.uff", kTestFile);
   const std::string dir = std::filesystem::path(WriteTempFile("bar_test.uff", kTestFile)).parent_path().string();
