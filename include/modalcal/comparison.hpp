@@ -14,13 +14,16 @@
 ///   1 where measured and model shapes agree at that DOF in every pair; low values localize the
 ///   disagreement. Undefined (NaN) where a DOF is zero in every measured or every model shape.
 /// - Cross-orthogonality \f$C = \tilde\Phi_t^T M_a \Phi_a\f$ with the SEREP mass (O'Callahan,
-///   Avitabile & Riemer 1989): \f$\Phi_a = P U_p\f$ the paired model modes at the sensors,
-///   \f$T = U_p \Phi_a^+\f$, \f$M_a = T^T M T = (\Phi_a^+)^T (U_p^T M U_p) \Phi_a^+ = (\Phi_a^+)^T \Phi_a^+\f$
+///   Avitabile & Riemer 1989): with U the basis modes and \f$\Phi_a = P U\f$ at the sensors,
+///   \f$T = U \Phi_a^+\f$, \f$M_a = T^T M T = (\Phi_a^+)^T (U^T M U) \Phi_a^+ = (\Phi_a^+)^T \Phi_a^+\f$
 ///   since the modes are mass-normalized; each measured shape is scaled to
-///   \f$\tilde\phi^T M_a \tilde\phi = 1\f$ with the sign of its pair. The model modes reduced this way
+///   \f$\tilde\phi^T M_a \tilde\phi = 1\f$ with the sign of its pair. The basis modes reduced this way
 ///   are exactly M_a-orthonormal, so C is the identity for perfect data; the usual acceptance is
-///   \f$|C_{ii}| > 0.9\f$, \f$|C_{ij}| < 0.1\f$. SEREP needs at least as many sensor DOFs as paired modes
-///   and independent modes at the sensors; otherwise there is no test mass and C is left empty.
+///   \f$|C_{ii}| > 0.9\f$, \f$|C_{ij}| < 0.1\f$. The basis is every computed mode when there are at
+///   least as many sensor DOFs and the modes are independent at the sensors (a measured shape's
+///   part outside the paired modes then shows against the others), else the paired modes alone
+///   (each row of C then has unit length: only the mixing among paired modes shows); when
+///   neither works there is no test mass and C is left empty.
 ///
 /// \code
 /// modalcal::ModalComparison c = modalcal::compare_modes(problem, problem.initial_values());
@@ -65,10 +68,11 @@ struct ModalComparison {
   Matrix mac;
   /// per sensor DOF (Problem::sensors), NaN where undefined; empty without shapes.
   Vector comac;
-  /// rows: measured modes with shapes, columns: their paired model modes, both in the order of
-  /// `shape_pairs`; empty without a test mass (see `cross_orthogonality_note`).
+  /// rows: the measured modes of `shape_pairs`, columns: the model modes of `serep_modes`;
+  /// empty without a test mass (see `cross_orthogonality_note`).
   Matrix cross_orthogonality;
   std::vector<int> shape_pairs;              ///< indices into `pairs` of the pairs with shapes
+  std::vector<int> serep_modes;              ///< 0-based model modes of the SEREP basis
   std::string cross_orthogonality_note;      ///< why there is no test mass, or empty
   std::vector<std::string> warnings;         ///< the pairing's warnings (nearly repeated eigenvalues)
 };

@@ -68,6 +68,8 @@ int run_compare(const CompareArgs& args) {
   options.unpaired_mac = args.unpaired_mac;
   const ModalComparison c = compare_modes(problem, p, options);
   const std::vector<std::string> labels = measured_labels(problem);
+  int width = 14;  // of the label column
+  for (const std::string& l : labels) width = std::max(width, static_cast<int>(l.size()));
 
   std::printf("%s: %zu measured modes, %d model modes computed, parameters (%s%s):", problem.path.c_str(),
               problem.measured.size(), static_cast<int>(c.model_hz.size()), args.params.source.c_str(),
@@ -76,10 +78,10 @@ int run_compare(const CompareArgs& args) {
     std::printf(" %s = %.6g", problem.parameters[j].name.c_str(), p[static_cast<Eigen::Index>(j)]);
   std::printf("\n");
   std::fputs(hidden_effect_text(problem).c_str(), stdout);
-  std::printf("\n%-14s %10s %14s %14s %9s %7s %7s\n", "measured", "model mode", "measured [Hz]", "model [Hz]", "error %",
+  std::printf("\n%-*s %10s %14s %14s %9s %7s %7s\n", width, "measured", "model mode", "measured [Hz]", "model [Hz]", "error %",
               "MAC", "XOR");
   for (const ComparedPair& pair : c.pairs)
-    std::printf("%-14s %10d %14.4f %14.4f %9.4f %7s %7s\n", labels[pair.measured].c_str(), pair.model + 1,
+    std::printf("%-*s %10d %14.4f %14.4f %9.4f %7s %7s\n", width, labels[pair.measured].c_str(), pair.model + 1,
                 pair.measured_hz, pair.model_hz, pair.error_percent, cell(pair.mac >= 0 ? pair.mac : NAN, "%.4f").c_str(),
                 cell(pair.cross_orthogonality, "%.4f").c_str());
   std::printf("unpaired measured modes (MAC < %g):", options.unpaired_mac);
@@ -90,11 +92,11 @@ int run_compare(const CompareArgs& args) {
   for (int k : c.unpaired_model) std::printf(" %d (%.4f Hz)", k + 1, c.model_hz[k]);
   std::printf("%s\n", c.unpaired_model.empty() ? " none" : "");
 
-  std::printf("\nMAC matrix (rows: measured modes, columns: model modes)\n%-14s", "");
+  std::printf("\nMAC matrix (rows: measured modes, columns: model modes)\n%-*s", width, "");
   for (Eigen::Index k = 0; k < c.mac.cols(); ++k) std::printf(" %5d", static_cast<int>(k + 1));
   std::printf("\n");
   for (Eigen::Index i = 0; i < c.mac.rows(); ++i) {
-    std::printf("%-14s", labels[i].c_str());
+    std::printf("%-*s", width, labels[i].c_str());
     for (Eigen::Index k = 0; k < c.mac.cols(); ++k) std::printf(" %5s", cell(c.mac(i, k), "%.2f").c_str());
     std::printf("\n");
   }
@@ -108,11 +110,12 @@ int run_compare(const CompareArgs& args) {
       std::printf("  %-16s %8s\n", problem.sensors[s].label.c_str(), cell(c.comac[s], "%.4f").c_str());
   }
   if (c.cross_orthogonality.size() > 0) {
-    std::printf("\ncross-orthogonality with the SEREP test mass (rows: measured, columns: paired model modes)\n%-14s", "");
-    for (int index : c.shape_pairs) std::printf(" %6d", c.pairs[index].model + 1);
+    std::printf("\ncross-orthogonality with the SEREP test mass (rows: measured, columns: model modes of its basis)\n%-*s",
+                width, "");
+    for (int k : c.serep_modes) std::printf(" %6d", k + 1);
     std::printf("\n");
     for (size_t i = 0; i < c.shape_pairs.size(); ++i) {
-      std::printf("%-14s", labels[c.pairs[c.shape_pairs[i]].measured].c_str());
+      std::printf("%-*s", width, labels[c.pairs[c.shape_pairs[i]].measured].c_str());
       for (Eigen::Index k = 0; k < c.cross_orthogonality.cols(); ++k)
         std::printf(" %6s", cell(c.cross_orthogonality(static_cast<Eigen::Index>(i), k), "%.3f").c_str());
       std::printf("\n");
@@ -160,10 +163,8 @@ int run_compare(const CompareArgs& args) {
   }
   if (c.cross_orthogonality.size() > 0) {
     nlohmann::json rows = nlohmann::json::array(), columns = nlohmann::json::array();
-    for (int index : c.shape_pairs) {
-      rows.push_back(c.pairs[index].measured + 1);
-      columns.push_back(c.pairs[index].model + 1);
-    }
+    for (int index : c.shape_pairs) rows.push_back(c.pairs[index].measured + 1);
+    for (int k : c.serep_modes) columns.push_back(k + 1);
     json["cross_orthogonality"] = {{"measured", rows}, {"model_modes", columns}, {"values", matrix_json(c.cross_orthogonality)}};
   } else {
     json["cross_orthogonality"] = nullptr;

@@ -91,33 +91,53 @@ ModalComparison compare_modes(const Problem& problem, const Vector& p, const Com
   }
   c.comac = comac(measured_shapes, model_shapes);
 
-  // SEREP test-analysis mass from the paired model modes.
-  const Eigen::Index ns = model_at_sensors.rows(), np = static_cast<Eigen::Index>(model_shapes.size());
-  if (ns < np) {
-    c.cross_orthogonality_note = "SEREP needs at least as many sensor DOFs (" + std::to_string(ns) +
-                                 ") as paired modes with shapes (" + std::to_string(np) + ")";
-    return c;
+  // SEREP test-analysis mass: from every computed mode when the sensors can tell them apart
+  // (then a measured shape's part outside the paired modes shows), else from the paired ones.
+  const Eigen::Index ns = model_at_sensors.rows();
+  std::vector<int> paired_modes;
+  for (int index : c.shape_pairs) paired_modes.push_back(c.pairs[static_cast<size_t>(index)].model);
+  std::vector<int> all_modes(static_cast<size_t>(num_model));
+  for (int k = 0; k < num_model; ++k) all_modes[static_cast<size_t>(k)] = k;
+  Matrix pseudo_inverse;
+  for (const std::vector<int>& basis : {all_modes, paired_modes}) {
+    const Eigen::Index nb = static_cast<Eigen::Index>(basis.size());
+    if (ns < nb) {
+      c.cross_orthogonality_note = "SEREP needs at least as many sensor DOFs (" + std::to_string(ns) +
+                                   ") as model modes in its basis (" + std::to_string(nb) + ")";
+      continue;
+    }
+    Matrix phi_a(ns, nb);
+    for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(basis[static_cast<size_t>(j)]);
+    const Eigen::JacobiSVD<Matrix> svd(phi_a, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Vector& sigma = svd.singularValues();
+    if (!(sigma[nb - 1] > options.serep_condition * sigma[0])) {
+      c.cross_orthogonality_note = "the " + std::to_string(nb) + " model modes of the SEREP basis are not independent " +
+                                   "at the sensors (singular values " + std::to_string(sigma[0]) + " to " +
+                                   std::to_string(sigma[nb - 1]) + ")";
+      continue;
+    }
+    pseudo_inverse = svd.matrixV() * sigma.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
+    c.serep_modes = basis;
+    c.cross_orthogonality_note.clear();
+    break;
   }
-  Matrix phi_a(ns, np);
-  for (Eigen::Index j = 0; j < np; ++j) phi_a.col(j) = model_shapes[static_cast<size_t>(j)];
-  const Eigen::JacobiSVD<Matrix> svd(phi_a, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Vector& sigma = svd.singularValues();
-  if (!(sigma[np - 1] > options.serep_condition * sigma[0])) {
-    c.cross_orthogonality_note = "the paired model modes are not independent at the sensors (singular values " +
-                                 std::to_string(sigma[0]) + " to " + std::to_string(sigma[np - 1]) +
-                                 "): no SEREP test mass";
-    return c;
-  }
-  const Matrix pseudo_inverse = svd.matrixV() * sigma.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
+  if (c.serep_modes.empty()) return c;
   const Matrix test_mass = pseudo_inverse.transpose() * pseudo_inverse;
-  c.cross_orthogonality.resize(np, np);
-  for (Eigen::Index i = 0; i < np; ++i) {
-    Vector phi = measured_shapes[static_cast<size_t>(i)];
+  const Eigen::Index nb = static_cast<Eigen::Index>(c.serep_modes.size());
+  Matrix phi_a(ns, nb);
+  for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(c.serep_modes[static_cast<size_t>(j)]);
+  c.cross_orthogonality.resize(static_cast<Eigen::Index>(c.shape_pairs.size()), nb);
+  for (size_t i = 0; i < c.shape_pairs.size(); ++i) {
+    ComparedPair& pair = c.pairs[static_cast<size_t>(c.shape_pairs[i])];
+    const Eigen::Index column =
+        std::find(c.serep_modes.begin(), c.serep_modes.end(), pair.model) - c.serep_modes.begin();
+    Vector phi = measured_shapes[i];
     const double norm = phi.dot(test_mass * phi);
     phi /= norm > 0 ? std::sqrt(norm) : 1.0;
-    if (phi.dot(test_mass * phi_a.col(i)) < 0) phi = -phi;
-    c.cross_orthogonality.row(i) = (norm > 0 ? 1.0 : NAN) * (phi.transpose() * test_mass * phi_a);
-    c.pairs[static_cast<size_t>(c.shape_pairs[static_cast<size_t>(i)])].cross_orthogonality = c.cross_orthogonality(i, i);
+    if (phi.dot(test_mass * phi_a.col(column)) < 0) phi = -phi;  // the sign of its pair
+    const Eigen::Index row = static_cast<Eigen::Index>(i);
+    c.cross_orthogonality.row(row) = (norm > 0 ? 1.0 : NAN) * (phi.transpose() * test_mass * phi_a);
+    pair.cross_orthogonality = c.cross_orthogonality(row, column);
   }
   return c;
 }
