@@ -225,6 +225,13 @@ TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   const nlohmann::json calibrated = nlohmann::json::parse(ReadFile(dir + "/calibrate.json"));
   EXPECT_EQ(calibrated["hidden_effect"][1]["name"], "added_mass_tip.mass");
 
+  // --sensors measures every node of a node set in x, y and z (the tip: 2 x 3 nodes).
+  ASSERT_EQ(RunCli("synth " + nominal + " --modes 1,2 --sensors tip -o " + dir + "/tip.yaml").exit_code, 0);
+  const std::string tip = ReadFile(dir + "/tip.yaml");
+  size_t sensors = 0;
+  for (size_t at = tip.find("  - {node:"); at != std::string::npos; at = tip.find("  - {node:", at + 1)) ++sensors;
+  EXPECT_EQ(sensors, 18u) << tip;
+
   // Bad input names the cause and exits with 2; the problem file is never overwritten.
   run = RunCli("synth " + nominal + " --modes 1 --truth nosuch.kx=1 -o " + dir + "/bad.yaml");
   EXPECT_EQ(run.exit_code, 2);

@@ -29,6 +29,13 @@ void plot_panels(const std::string& path, const std::string& title, const std::s
                  const std::vector<PlotPanel>& panels);
 
 /// A matrix drawn as coloured cells with their values printed, e.g. a MAC matrix.
+/// \code
+/// modalcal::HeatMap map;
+/// map.values = mac_matrix;                       // measured x model modes, in [0, 1]
+/// map.row_labels = {"mode 1", "mode 2"};
+/// map.column_labels = {"1", "2", "3"};
+/// modalcal::plot_heat_map("out/mac.png", "MAC matrix", map);
+/// \endcode
 struct HeatMap {
   std::vector<std::string> row_labels;     ///< one per row of `values`, drawn top to bottom
   std::vector<std::string> column_labels;  ///< one per column

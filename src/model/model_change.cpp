@@ -162,7 +162,10 @@ std::vector<std::string> entity_names(const Model& model) {
   for (const ElementBlock& b : model.blocks) names.push_back(b.name);
   for (const Joint& j : model.joints) names.push_back(j.name);
   for (const GroundSpring& s : model.ground_springs) names.push_back(s.name);
-  for (const PointMass& m : model.point_masses) names.push_back(m.name);
+  for (const PointMass& m : model.point_masses) {
+    const std::string entity = m.name.substr(0, m.name.find(" (node "));  // one name per node-set mass
+    if (std::find(names.begin(), names.end(), entity) == names.end()) names.push_back(entity);
+  }
   return names;
 }
 
