@@ -11,6 +11,7 @@
 #include "modalcal/objective.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/synthesis.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -92,6 +93,33 @@ TEST(BundledProblems, ProppedCantileverIsAnEigenvalueOnlyStudy) {
 
 TEST(BundledProblems, ProppedCantileverLbfgsRecoversTruthFromInitialPoint) {
   ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/propped-cantilever/synthetic.yaml")));
+}
+
+// The model-form study: its data file holds the synth run named in the problem file, with its
+// truth; the problem takes sensors and truth values from it.
+TEST(BundledProblems, PortalFrameHiddenMassDataIsWhatSynthMakes) {
+  const Problem study = load_problem(SourcePath("problems/portal-frame/hidden-mass.yaml"));
+  const Problem nominal = load_problem(SourcePath("problems/portal-frame/synthetic.yaml"));
+  ASSERT_TRUE(study.synthetic_truth);
+  ASSERT_EQ(study.synthetic_truth->hidden_effects.size(), 1u);
+  EXPECT_EQ(study.synthetic_truth->hidden_effects[0].value, 0.1);
+  EXPECT_EQ(study.synthetic_truth->hidden_effects[0].nominal_value, 0);
+  EXPECT_EQ(study.truth_values(), nominal.truth_values());
+  ASSERT_EQ(study.sensors.size(), nominal.sensors.size());
+  for (size_t s = 0; s < nominal.sensors.size(); ++s) EXPECT_EQ(study.sensors[s].node, nominal.sensors[s].node);
+
+  SynthesisOptions options;
+  options.modes = {1, 2, 3, 4, 5, 6};
+  options.noise = *study.measurement_noise;
+  const MeasuredData data = synthesize_measured_data(
+      nominal, make_truth(nominal, nullptr, {parse_model_change(study.synthetic_truth->changes.at(0))}), nominal.sensors,
+      options);
+  EXPECT_EQ(data.truth->hidden_effects[0].name, study.synthetic_truth->hidden_effects[0].name);
+  ASSERT_EQ(data.modes.size(), study.measured.size());
+  for (size_t k = 0; k < data.modes.size(); ++k) {
+    EXPECT_TRUE(testing::IsClose(study.measured[k].frequency_hz, data.modes[k].frequency_hz, 1e-9)) << k;
+    EXPECT_LT((study.measured[k].shape - data.modes[k].shape).cwiseAbs().maxCoeff(), 1e-6) << k;
+  }
 }
 
 }  // namespace

@@ -179,5 +179,101 @@ TEST(Cli, ImportTestDataNamesTheBadLineAndKeepsInputs) {
   EXPECT_EQ(ReadFile(good), ReadFile(testing::SourcePath("tests/data/uff/uff55_translation.uff")));
 }
 
+// The bar with sensors on its top edge and Young's modulus to calibrate (its truth unknown: the
+// truth model keeps the file's value).
+const char* kSensedBar = R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
+blocks:
+  bar: {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
+  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
+  top_edge: {box: {min: [0, 0.5, 0.75], max: [4, 0.5, 0.75]}}
+fixed:
+  - {node_set: root, dofs: [x, y, z]}
+parameters:
+  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, scaling: log}
+sensors:
+  - {node_set: top_edge, directions: [x, y, z]}
+options:
+  num_modes: 6
+)";
+
+TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
+  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  const std::string synth = "synth " + nominal + " --truth bar.density=1.1 --truth 'point_mass@tip:mass=0.05' " +
+                            "--modes 1,2,3,4 --noise-freq 0.002 --noise-shape 0.01 --seed 3 -o ";
+  CliRun run = RunCli(synth + dir + "/data.yaml");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("hidden effect: added_mass_tip.mass = 0.05 (nominal 0): added point mass at node set tip"),
+            std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("hidden effect: bar.density = 1.1 (nominal 1)"), std::string::npos) << run.output;
+  ASSERT_EQ(RunCli(synth + dir + "/again.yaml").exit_code, 0);
+  EXPECT_EQ(ReadFile(dir + "/data.yaml"), ReadFile(dir + "/again.yaml"));  // same seed, same file
+
+  // The nominal problem pointed at the data (it takes its sensors from them).
+  const std::string study = WriteTempFile("study.yaml", std::string(kSensedBar) + "measured: {file: data.yaml}\n");
+  const std::string json_path = dir + "/compare.json";
+  run = RunCli("compare " + study + " --set E=1100 --json " + json_path + " --mac-plot " + dir + "/mac.png --error-plot " +
+               dir + "/errors.svg");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("MAC matrix"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("COMAC per sensor DOF"), std::string::npos) << run.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
+  ASSERT_EQ(j["pairs"].size(), 4u);
+  for (const auto& pair : j["pairs"]) {
+    // The tip mass changes the shapes a little (the fourth mode: MAC 0.83, cross-orthogonality 0.80).
+    EXPECT_EQ(pair["model_mode"], pair["measured"]);
+    EXPECT_GT(pair["mac"].get<double>(), 0.8);
+    EXPECT_GT(pair["cross_orthogonality"].get<double>(), 0.75);
+    // The model (E = 1100, without the extra density and mass) is stiffer and lighter than the truth.
+    EXPECT_GT(pair["error_percent"].get<double>(), 5);
+  }
+  ASSERT_EQ(j["hidden_effect"].size(), 2u);
+  EXPECT_EQ(j["hidden_effect"][1]["name"], "added_mass_tip.mass");
+  EXPECT_EQ(j["hidden_effect"][1]["value"], 0.05);
+  EXPECT_EQ(j["hidden_effect"][1]["nominal_value"], 0);
+  EXPECT_EQ(j["mac_matrix"].size(), 4u);
+  EXPECT_EQ(j["mac_matrix"][0].size(), j["model_modes_hz"].size());
+  EXPECT_EQ(j["comac"].size(), 27u);
+  EXPECT_TRUE(j["comac"][0]["comac"].is_null());  // the clamped root
+  EXPECT_EQ(j["parameters"][0]["value"], 1100);
+  EXPECT_TRUE(std::filesystem::file_size(dir + "/mac.png") > 0);
+  EXPECT_NE(ReadFile(dir + "/errors.svg").find("<svg"), std::string::npos);
+
+  run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --json " + dir + "/calibrate.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("hidden effect: added_mass_tip.mass"), std::string::npos) << run.output;
+  const nlohmann::json calibrated = nlohmann::json::parse(ReadFile(dir + "/calibrate.json"));
+  EXPECT_EQ(calibrated["hidden_effect"][1]["name"], "added_mass_tip.mass");
+
+  // --sensors measures every node of a node set in x, y and z (the tip: 2 x 3 nodes).
+  ASSERT_EQ(RunCli("synth " + nominal + " --modes 1,2 --sensors tip -o " + dir + "/tip.yaml").exit_code, 0);
+  const std::string tip = ReadFile(dir + "/tip.yaml");
+  size_t sensors = 0;
+  for (size_t at = tip.find("  - {node:"); at != std::string::npos; at = tip.find("  - {node:", at + 1)) ++sensors;
+  EXPECT_EQ(sensors, 18u) << tip;
+
+  // Bad input names the cause and exits with 2; the problem file is never overwritten.
+  run = RunCli("synth " + nominal + " --modes 1 --truth nosuch.kx=1 -o " + dir + "/bad.yaml");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("unknown entity 'nosuch'; known blocks, joints, springs and point masses: bar"),
+            std::string::npos)
+      << run.output;
+  run = RunCli("synth " + nominal + " --modes 1 --truth bar.E=900 -o " + dir + "/bad.yaml");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("calibration parameter's target"), std::string::npos) << run.output;
+  const std::string before = ReadFile(nominal);
+  run = RunCli("synth " + nominal + " --modes 1 -o " + nominal);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("refusing"), std::string::npos) << run.output;
+  EXPECT_EQ(ReadFile(nominal), before);
+}
+
 }  // namespace
 }  // namespace modalcal

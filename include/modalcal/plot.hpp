@@ -1,8 +1,9 @@
 #pragma once
 /// \file plot.hpp
-/// Convergence plots through gnuplot (Debian gnuplot-nox): the data and the script go to a
-/// temporary directory, gnuplot renders to a temporary file, which is then renamed onto the
-/// target, so a failed plot never leaves half a file.
+/// Plots through gnuplot (Debian gnuplot-nox): convergence curves, heat maps (MAC matrices) and
+/// bar charts (frequency errors). The data and the script go to a temporary directory, gnuplot
+/// renders to a temporary file, which is then renamed onto the target, so a failed plot never
+/// leaves half a file. The file name's extension (.png or .svg) chooses the format.
 
 #include <string>
 #include <vector>
@@ -26,5 +27,34 @@ struct PlotPanel {
 /// label. \throws std::runtime_error naming the cause if gnuplot is missing or fails.
 void plot_panels(const std::string& path, const std::string& title, const std::string& xlabel,
                  const std::vector<PlotPanel>& panels);
+
+/// A matrix drawn as coloured cells with their values printed, e.g. a MAC matrix.
+/// \code
+/// modalcal::HeatMap map;
+/// map.values = mac_matrix;                       // measured x model modes, in [0, 1]
+/// map.row_labels = {"mode 1", "mode 2"};
+/// map.column_labels = {"1", "2", "3"};
+/// modalcal::plot_heat_map("out/mac.png", "MAC matrix", map);
+/// \endcode
+struct HeatMap {
+  std::vector<std::string> row_labels;     ///< one per row of `values`, drawn top to bottom
+  std::vector<std::string> column_labels;  ///< one per column
+  std::string row_title, column_title, value_title;
+  Matrix values;                           ///< NaN cells are left blank
+  double min = 0, max = 1;                 ///< colour range
+};
+
+/// \throws as plot_panels, and std::invalid_argument if the labels do not match `values`.
+void plot_heat_map(const std::string& path, const std::string& title, const HeatMap& map);
+
+/// Bars with a label each, e.g. the frequency error of every measured mode.
+struct BarChart {
+  std::vector<std::string> labels;
+  std::vector<double> values;
+  std::string ylabel;
+};
+
+/// \throws as plot_panels, and std::invalid_argument if labels and values differ in number.
+void plot_bars(const std::string& path, const std::string& title, const BarChart& chart);
 
 }  // namespace modalcal

@@ -9,12 +9,15 @@
 /// modalcal::ParametricSystem system(problem.model, problem.parameter_targets());
 /// \endcode
 
+#include <cstdint>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "modalcal/model.hpp"
+#include "modalcal/model_change.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
@@ -72,6 +75,36 @@ struct SyntheticSpec {
   int source_line = 0;
 };
 
+/// Gaussian noise of synthetic measurements (`fullspace_calib synth`), with \f$N(0,1)\f$ standard
+/// normal draws: a frequency becomes \f$f\,(1 + \sigma_f N)\f$ and each shape value, the shape first
+/// scaled to a largest magnitude of 1, \f$\phi_s + \sigma_\phi \max_s|\phi_s|\, N\f$.
+struct MeasurementNoise {
+  double frequency = 0;    ///< \f$\sigma_f\f$, relative standard deviation of a frequency. Range: [0, 0.2] (a frequency must stay positive).
+  double shape = 0;        ///< \f$\sigma_\phi\f$, of a shape value relative to the largest. Range: [0, 1].
+  std::uint64_t seed = 1;  ///< the same seed gives the same draws on every platform. Any value.
+  /// Returns false and names the field, its value and the violated range.
+  bool IsValid(std::string* error) const;
+};
+
+/// The truth synthetic measured data were made from, so that reports can show what was hidden
+/// beside what a diagnosis found.
+struct SyntheticTruth {
+  /// Where the truth model came from, e.g. "the nominal model with 1 change" or a truth file.
+  std::string source;
+  /// The change strings applied to make the truth (canonical, see model_change.hpp); empty when
+  /// the truth is a problem file alone.
+  std::vector<std::string> changes;
+  /// Properties of the truth model that are not calibration targets and differ from the nominal
+  /// model or are absent from it: the physics the nominal model lacks. Empty when the nominal
+  /// model form is right (only the calibration parameters differ).
+  std::vector<ModelEffect> hidden_effects;
+  /// Differences no property expresses (mesh, supports, couplings, where entities sit), in
+  /// words; empty if there are none.
+  std::string other_differences;
+  /// The calibration parameters' values in the truth model, by parameter name.
+  std::vector<std::pair<std::string, double>> parameters;
+};
+
 struct Problem {
   std::string path;            ///< the file it came from
   std::string name, description;
@@ -85,6 +118,14 @@ struct Problem {
   /// What loading accepted but a user should know, e.g. test nodes that matched no model node
   /// or complex test modes made real (`measured: test_data`).
   std::vector<std::string> warnings;
+
+  /// `measured: {file: ...}`: the data file the measured modes were read from (else empty).
+  std::string measured_file;
+  /// The truth the measured modes came from, when known: a data file's `truth:` section, or for
+  /// `measured: synthetic` the nominal model at the parameters' truth values (no hidden effect).
+  std::optional<SyntheticTruth> synthetic_truth;
+  /// A data file's `noise:` section, when it has one.
+  std::optional<MeasurementNoise> measurement_noise;
 
   std::vector<std::vector<PropertyId>> parameter_targets() const;
   Vector initial_values() const;

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "cli/cli_common.hpp"
+
 namespace modalcal::cli {
 
 nlohmann::json CalibrationReport::json() const {
@@ -63,6 +65,8 @@ CalibrationReport make_report(Objective& objective, const Vector& initial, const
     }
     for (const std::string& w : e.warnings) report.text += "warning: " + w + "\n";
   }
+  const std::string hidden = hidden_effect_text(problem);
+  if (!hidden.empty()) report.text += "\n" + hidden;
   return report;
 }
 
@@ -85,7 +89,7 @@ nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::js
 }  // namespace
 
 nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summary) {
-  return {{"problem", problem.path},
+  nlohmann::json json = {{"problem", problem.path},
           {"method", summary.method},
           {"converged", summary.converged()},
           {"status", to_string(summary.termination)},
@@ -99,6 +103,8 @@ nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summar
           {"time_s", summary.seconds},
           {"convergence_order", number(summary.convergence_order)},
           {"history", history_json(summary.history)}};
+  add_hidden_effect(problem, &json);
+  return json;
 }
 
 nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summary) {
@@ -128,7 +134,7 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
                           {"reason", summary.mode_check.reason},
                           {"mac", summary.mode_check.mac},
                           {"eigenvalue_error", summary.mode_check.eigenvalue_error}};
-  return {{"problem", problem.path},
+  nlohmann::json json = {{"problem", problem.path},
           {"method", "fullspace"},
           {"converged", summary.converged()},
           {"status", to_string(summary.status)},
@@ -150,6 +156,8 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
           {"mode_check", check},
           {"kkt_history", kkt},
           {"history", global}};
+  add_hidden_effect(problem, &json);
+  return json;
 }
 
 }  // namespace modalcal::cli

@@ -1,6 +1,7 @@
 #include "cli/cli_common.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 
@@ -106,6 +107,35 @@ ReducedOptions::Method parse_method(const std::string& name) {
 
 void print_warnings(const Problem& problem) {
   for (const std::string& w : problem.warnings) std::cerr << "warning: " << w << "\n";
+}
+
+void add_hidden_effect(const Problem& problem, nlohmann::json* json) {
+  if (!problem.synthetic_truth) return;
+  nlohmann::json effects = nlohmann::json::array();
+  for (const ModelEffect& e : problem.synthetic_truth->hidden_effects)
+    effects.push_back(
+        {{"name", e.name}, {"description", e.description}, {"value", e.value}, {"nominal_value", e.nominal_value}});
+  (*json)["hidden_effect"] = effects;
+  if (!problem.synthetic_truth->other_differences.empty())
+    (*json)["other_differences"] = problem.synthetic_truth->other_differences;
+}
+
+std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& recorded_in) {
+  std::string text = "truth of the measured data: " + (truth.source.empty() ? "recorded" : truth.source);
+  if (!recorded_in.empty()) text += " (recorded in " + recorded_in + ")";
+  text += "\n";
+  if (truth.hidden_effects.empty()) text += "hidden effect: none (the nominal model form is right)\n";
+  char line[64];
+  for (const ModelEffect& e : truth.hidden_effects) {
+    std::snprintf(line, sizeof line, " = %.6g (nominal %.6g): ", e.value, e.nominal_value);
+    text += "hidden effect: " + e.name + line + e.description + "\n";
+  }
+  if (!truth.other_differences.empty()) text += "other differences: " + truth.other_differences + "\n";
+  return text;
+}
+
+std::string hidden_effect_text(const Problem& problem) {
+  return problem.synthetic_truth ? hidden_effect_text(*problem.synthetic_truth, problem.measured_file) : "";
 }
 
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {

@@ -38,4 +38,15 @@ void print_warnings(const Problem& problem);
 /// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
 
+/// Adds `hidden_effect: [{name, description, value, nominal_value}]` to `json` when the truth the
+/// measured modes came from is known (an empty list: the nominal model form is right), and
+/// `other_differences` when the truth differs in more than properties.
+void add_hidden_effect(const Problem& problem, nlohmann::json* json);
+
+/// The same for people: "hidden effect: NAME = VALUE (nominal N): DESCRIPTION" lines, or "" when
+/// the truth is unknown.
+std::string hidden_effect_text(const Problem& problem);
+/// The lines for `truth`; `recorded_in` names the data file it was read from, if any.
+std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& recorded_in);
+
 }  // namespace modalcal::cli

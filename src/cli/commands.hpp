@@ -10,4 +10,7 @@ void register_check_command(CLI::App& app, int* exit_code);
 void register_full_vs_reduced_study(CLI::App* study, int* exit_code);
 void register_study_command(CLI::App& app, int* exit_code);
 void register_import_test_data_command(CLI::App& app, int* exit_code);
+
+void register_synth_command(CLI::App& app, int* exit_code);
+void register_compare_command(CLI::App& app, int* exit_code);
 }  // namespace modalcal::cli

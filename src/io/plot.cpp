@@ -1,9 +1,12 @@
 #include "modalcal/plot.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <stdexcept>
 #include <unistd.h>
 
@@ -14,15 +17,17 @@ namespace modalcal {
 namespace fs = std::filesystem;
 
 namespace {
+
 std::string quoted(const std::string& s) {
   std::string out = "'";
   for (char c : s) out += c == '\'' ? std::string("''") : std::string(1, c);
   return out + "'";
 }
-}  // namespace
 
-void plot_panels(const std::string& path, const std::string& title, const std::string& xlabel,
-                 const std::vector<PlotPanel>& panels) {
+/// Runs a gnuplot script that `write_body` completes (after the terminal and output lines; data
+/// files go to the work directory it is given) and renames the rendering onto `path`.
+void render(const std::string& path, int width, int height,
+            const std::function<void(std::ostream& script, const fs::path& work)>& write_body) {
   const std::string extension = fs::path(path).extension().string();
   if (extension != ".png" && extension != ".svg")
     throw std::invalid_argument("plot '" + path + "': the file name must end in .png or .svg");
@@ -34,27 +39,10 @@ void plot_panels(const std::string& path, const std::string& title, const std::s
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   const fs::path rendered = dir / ("." + target.filename().string() + ".rendering" + extension);
   std::ofstream script(work / "plot.gp");
-  script << (extension == ".png" ? "set terminal pngcairo size " : "set terminal svg size ") << 560 * panels.size()
-         << ",460 font 'sans,10'\n";
+  script << (extension == ".png" ? "set terminal pngcairo size " : "set terminal svg size ") << width << "," << height
+         << " font 'sans,10'\n";
   script << "set output " << quoted(rendered.string()) << "\n";
-  script << "set multiplot layout 1," << panels.size() << " title " << quoted(title) << "\n";
-  script << "set grid\nset key bottom left\nset xlabel " << quoted(xlabel) << "\n";
-  for (size_t k = 0; k < panels.size(); ++k) {
-    const PlotPanel& panel = panels[k];
-    script << (panel.log_y ? "set logscale y\nset format y '10^{%T}'\n" : "unset logscale y\nset format y '%g'\n");
-    script << "set ylabel " << quoted(panel.ylabel) << "\nplot ";
-    for (size_t s = 0; s < panel.series.size(); ++s) {
-      const fs::path data = work / ("panel" + std::to_string(k) + "_" + std::to_string(s) + ".dat");
-      std::ofstream out(data);
-      out.precision(12);
-      for (size_t i = 0; i < panel.series[s].x.size(); ++i)
-        if (!panel.log_y || panel.series[s].y[i] > 0) out << panel.series[s].x[i] << " " << panel.series[s].y[i] << "\n";
-      script << (s ? ", " : "") << quoted(data.string()) << " using 1:2 with linespoints lw 2 pt 7 ps 0.6 title "
-             << quoted(panel.series[s].title);
-    }
-    script << "\n";
-  }
-  script << "unset multiplot\n";
+  write_body(script, work);
   script.close();
   const std::string command = "gnuplot " + quoted((work / "plot.gp").string()) + " 2>" + quoted((work / "err").string());
   const int status = std::system(command.c_str());
@@ -69,6 +57,95 @@ void plot_panels(const std::string& path, const std::string& title, const std::s
     throw std::runtime_error("plot '" + path + "': gnuplot failed: " + error);
   }
   fs::rename(rendered, target);
+}
+
+/// gnuplot tic list: ("a" 0, "b" 1, ...).
+std::string tics(const std::vector<std::string>& labels) {
+  std::string out = "(";
+  for (size_t i = 0; i < labels.size(); ++i)
+    out += (i ? ", " : "") + quoted(labels[i]) + " " + std::to_string(i);
+  return out + ")";
+}
+
+}  // namespace
+
+void plot_panels(const std::string& path, const std::string& title, const std::string& xlabel,
+                 const std::vector<PlotPanel>& panels) {
+  render(path, 560 * static_cast<int>(panels.size()), 460, [&](std::ostream& script, const fs::path& work) {
+    script << "set multiplot layout 1," << panels.size() << " title " << quoted(title) << "\n";
+    script << "set grid\nset key bottom left\nset xlabel " << quoted(xlabel) << "\n";
+    for (size_t k = 0; k < panels.size(); ++k) {
+      const PlotPanel& panel = panels[k];
+      script << (panel.log_y ? "set logscale y\nset format y '10^{%T}'\n" : "unset logscale y\nset format y '%g'\n");
+      script << "set ylabel " << quoted(panel.ylabel) << "\nplot ";
+      for (size_t s = 0; s < panel.series.size(); ++s) {
+        const fs::path data = work / ("panel" + std::to_string(k) + "_" + std::to_string(s) + ".dat");
+        std::ofstream out(data);
+        out.precision(12);
+        for (size_t i = 0; i < panel.series[s].x.size(); ++i)
+          if (!panel.log_y || panel.series[s].y[i] > 0) out << panel.series[s].x[i] << " " << panel.series[s].y[i] << "\n";
+        script << (s ? ", " : "") << quoted(data.string()) << " using 1:2 with linespoints lw 2 pt 7 ps 0.6 title "
+               << quoted(panel.series[s].title);
+      }
+      script << "\n";
+    }
+    script << "unset multiplot\n";
+  });
+}
+
+void plot_heat_map(const std::string& path, const std::string& title, const HeatMap& map) {
+  const Eigen::Index rows = map.values.rows(), cols = map.values.cols();
+  if (static_cast<Eigen::Index>(map.row_labels.size()) != rows ||
+      static_cast<Eigen::Index>(map.column_labels.size()) != cols)
+    throw std::invalid_argument("plot '" + path + "': " + std::to_string(map.row_labels.size()) + " row and " +
+                                std::to_string(map.column_labels.size()) + " column labels for a " +
+                                std::to_string(rows) + " x " + std::to_string(cols) + " matrix");
+  const int width = std::max(420, 160 + 48 * static_cast<int>(cols));
+  const int height = std::max(320, 140 + 36 * static_cast<int>(rows));
+  render(path, width, height, [&](std::ostream& script, const fs::path& work) {
+    const fs::path data = work / "cells.dat";
+    std::ofstream out(data);
+    out.precision(12);
+    // Row 0 at the top, as a matrix is read.
+    for (Eigen::Index i = 0; i < rows; ++i)
+      for (Eigen::Index k = 0; k < cols; ++k)
+        if (std::isfinite(map.values(i, k))) out << k << " " << i << " " << map.values(i, k) << "\n";
+    script << "set title " << quoted(title) << "\n";
+    script << "set xlabel " << quoted(map.column_title) << "\nset ylabel " << quoted(map.row_title) << "\n";
+    script << "set cblabel " << quoted(map.value_title) << "\n";
+    script << "set xtics " << tics(map.column_labels) << "\nset ytics " << tics(map.row_labels) << "\n";
+    script << "set xrange [-0.5:" << cols - 0.5 << "]\nset yrange [" << rows - 0.5 << ":-0.5]\n";
+    script << "set cbrange [" << map.min << ":" << map.max << "]\n";
+    script << "set palette defined (0 'white', 1 '#9ecae1', 2 '#3182bd')\nset tics nomirror out\nunset key\n";
+    script << "plot " << quoted(data.string()) << " using 1:2:3 with image, '' using 1:2:(sprintf('%.2f', $3)) "
+           << "with labels font 'sans,8'\n";
+  });
+}
+
+void plot_bars(const std::string& path, const std::string& title, const BarChart& chart) {
+  if (chart.labels.size() != chart.values.size())
+    throw std::invalid_argument("plot '" + path + "': " + std::to_string(chart.labels.size()) + " labels for " +
+                                std::to_string(chart.values.size()) + " values");
+  const int width = std::max(480, 160 + 40 * static_cast<int>(chart.values.size()));
+  render(path, width, 400, [&](std::ostream& script, const fs::path& work) {
+    const fs::path data = work / "bars.dat";
+    std::ofstream out(data);
+    out.precision(12);
+    for (size_t i = 0; i < chart.values.size(); ++i) out << i << " " << chart.values[i] << "\n";
+    script << "set title " << quoted(title) << "\nset ylabel " << quoted(chart.ylabel) << "\n";
+    // Bars start at zero: the y range always holds it.
+    double low = 0, high = 0;
+    for (double v : chart.values) {
+      low = std::min(low, v);
+      high = std::max(high, v);
+    }
+    const double margin = high > low ? 0.08 * (high - low) : 1.0;
+    script << "set yrange [" << (low < 0 ? low - margin : 0.0) << ":" << (high > 0 ? high + margin : 0.0) << "]\n";
+    script << "set xtics " << tics(chart.labels) << " rotate by 30 right\nset xrange [-0.6:" << chart.values.size() - 0.4
+           << "]\n";
+    script << "set grid ytics\nset xzeroaxis lt -1\nset style fill solid 0.7 border -1\nset boxwidth 0.6\nunset key\n";
+    script << "plot " << quoted(data.string()) << " using 1:2 with boxes lc rgb '#3182bd'\n";
+  });
 }
 
 }  // namespace modalcal

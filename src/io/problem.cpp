@@ -1,5 +1,9 @@
 #include "modalcal/problem.hpp"
 
+#include <cmath>
+
+#include "modalcal/model_change.hpp"
+
 namespace modalcal {
 
 namespace {
@@ -21,6 +25,16 @@ Vector collect(const std::vector<Parameter>& parameters, Get get) {
 
 ProblemError::ProblemError(const std::string& file, int line, const std::string& message)
     : std::invalid_argument(located(file, line, message)), file_(file), line_(line), message_(message) {}
+
+bool MeasurementNoise::IsValid(std::string* error) const {
+  auto check = [&](const char* field, double value, double upper) {
+    if (value >= 0 && value <= upper) return true;
+    if (error)
+      *error = std::string(field) + " = " + format_round_trip(value) + ": must be in [0, " + format_round_trip(upper) + "]";
+    return false;
+  };
+  return check("frequency", frequency, 0.2) && check("shape", shape, 1);
+}
 
 std::string to_string(Scaling scaling) {
   switch (scaling) {

@@ -121,6 +121,9 @@ struct Location {
   int line = 0;
 };
 
+/// Reads a YAML file; `what` names it in messages ("problem file", "data file").
+YAML::Node parse(const std::string& path, const std::string& what);
+
 class Loader {
  public:
   Loader(const std::string& path, const LoadOptions& options, Problem& problem)
@@ -171,11 +174,15 @@ class Loader {
   void read_sensors(const Field& f);
   void read_options(const Field& f);
   void read_measured(const Field& f);
+  void read_measured_file(const Field& f);
+  void read_data_sensors(const Field& f);
+  SyntheticTruth recorded_truth(const Field& f);
+  MeasurementNoise recorded_noise(const Field& f) const;
 
   std::function<bool(const Vec3&)> region(const Field& how) const;
   Mat3 frame(const Field& f) const;
   std::array<PropertyId, 6> stiffness(const std::string& entity, const Fields& fs);
-  MeasuredMode measured_mode(const Field& item) const;
+  MeasuredMode measured_mode(const Field& item, bool in_data_file) const;
   PairingRule pairing(const Field& f, bool has_shape) const;
   void check_computed(const Field& f, int mode) const;
   SyntheticSpec synthetic(const Field& f) const;
@@ -840,8 +847,8 @@ void Loader::read_options(const Field& f) {
 }
 
 void Loader::read_measured(const Field& f) {
-  const Fields fs = map_of(f, "measured", {"modes", "synthetic", "test_data"});
-  const Field& which = exactly_one(fs, {"modes", "synthetic", "test_data"});
+  const Fields fs = map_of(f, "measured", {"modes", "synthetic", "test_data", "file"});
+  const Field& which = exactly_one(fs, {"modes", "synthetic", "test_data", "file"});
   if (which.key == "synthetic") {
     problem_.synthetic = synthetic(which);
     return;
@@ -850,12 +857,133 @@ void Loader::read_measured(const Field& f) {
     detail::measured_from_test_data(test_data(which), &problem_);
     return;
   }
-  for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item));
+  if (which.key == "file") {
+    read_measured_file(which);
+    return;
+  }
+  for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item, false));
 }
 
-MeasuredMode Loader::measured_mode(const Field& item) const {
-  const Fields fs = map_of(item, "measured mode " + std::to_string(item.item),
-                           {"frequency_hz", "weight", "shape_weight", "shape", "label", "pair"});
+void Loader::read_measured_file(const Field& f) {
+  const std::string name = text(f);
+  const std::string path = (std::filesystem::path(current_file_).parent_path() / name).string();
+  if (!std::filesystem::exists(path))
+    fail(f, "no such data file " + quote(path) + " (the path is relative to this file's folder)");
+  const YAML::Node root = parse(path, "data file");
+  const std::string problem_file = current_file_;
+  current_file_ = path;
+  problem_.measured_file = path;
+  if (!root.IsMap())
+    fail_at(1, "", "expected a data file (a map with 'sensors' and 'modes'), got " + describe(root));
+  const Fields fs = map_of({"", "", root, 1, 0}, "", {"synthesized_from", "noise", "sensors", "truth", "modes"});
+  if (const Field* from = fs.find("synthesized_from")) text(*from);
+  if (const Field* noise = fs.find("noise")) problem_.measurement_noise = recorded_noise(*noise);
+  const Field* sensors = fs.find("sensors");
+  if (sensors) read_data_sensors(*sensors);
+  const Field& modes = required(fs, "modes");
+  for (const Field& item : list(modes)) {
+    if (!sensors && item.node.IsMap() && item.node["shape"])
+      fail_at(item.line, "measured mode " + std::to_string(item.item),
+              "has a 'shape' but the data file lists no 'sensors'; a data file with shapes must list the sensor "
+              "DOFs they were measured at");
+    problem_.measured.push_back(measured_mode(item, true));
+  }
+  if (problem_.measured.empty()) fail(modes, "'modes' is empty; the data file has no measured modes");
+  if (const Field* truth = fs.find("truth")) problem_.synthetic_truth = recorded_truth(*truth);
+  current_file_ = problem_file;
+}
+
+// A data file's sensors must be the problem's, in the same order, matched by position and
+// direction (node ids change with the mesh); a problem without sensors takes the data's.
+void Loader::read_data_sensors(const Field& f) {
+  const std::vector<Field> items = list(f);
+  const bool adopt = problem_.sensors.empty();
+  const std::string same_order = "the data's sensors must be the problem's, in the same order";
+  if (!adopt && items.size() != problem_.sensors.size())
+    fail(f, "lists " + std::to_string(items.size()) + " sensor DOFs but the problem's 'sensors' measure " +
+                std::to_string(problem_.sensors.size()) + "; " + same_order +
+                " (or leave out the problem's 'sensors' section to take the data's)");
+  const double tolerance = 1e-6 * model_size_;
+  for (const Field& item : items) {
+    const std::string what = "data sensor " + std::to_string(item.item);
+    const Fields fs = map_of(item, what, {"node", "direction", "at"});
+    if (const Field* id = fs.find("node")) integer(*id);
+    const int c = choice(required(fs, "direction"), kDirections);
+    const Field& at = required(fs, "at");
+    if (adopt) {
+      const int v = nearest_node(at, tolerance);
+      const std::string label = "node " + std::to_string(model_.node_ids[v]) + " +" + kDirections[c];
+      for (const Sensor& s : problem_.sensors)
+        if (s.node == v && s.component == c) fail_at(item.line, what, label + " is listed twice; measure each DOF once");
+      problem_.sensors.push_back({v, c, label});
+      continue;
+    }
+    const Sensor& expected = problem_.sensors[item.item - 1];
+    const Vec3 x = vec3(at);
+    const Vec3& position = model_.coordinates[expected.node];
+    if (c != expected.component || (x - position).norm() > tolerance)
+      fail_at(item.line, what, "is +" + kDirections[c] + " at " + format(x) + " but the problem's sensor DOF " +
+                     std::to_string(item.item) + " is " + expected.label + " at " + format(position) + "; " +
+                     same_order + " (were the data made on another mesh or refinement?)");
+  }
+}
+
+MeasurementNoise Loader::recorded_noise(const Field& f) const {
+  const Fields fs = map_of(f, "noise", {"frequency", "shape", "seed"});
+  MeasurementNoise noise;
+  if (const Field* n = fs.find("frequency")) noise.frequency = non_negative(*n);
+  if (const Field* n = fs.find("shape")) noise.shape = non_negative(*n);
+  if (const Field* seed = fs.find("seed"))
+    if (!seed->node.IsScalar() || !YAML::convert<std::uint64_t>::decode(seed->node, noise.seed))
+      fail(*seed, "expected a whole number from 0 to 2^64-1 for 'seed', got " + describe(seed->node));
+  std::string error;
+  if (!noise.IsValid(&error)) fail(f, "noise." + error);
+  return noise;
+}
+
+SyntheticTruth Loader::recorded_truth(const Field& f) {
+  const Fields fs =
+      map_of(f, "truth", {"source", "changes", "hidden_effects", "other_differences", "parameters"});
+  SyntheticTruth truth;
+  if (const Field* source = fs.find("source")) truth.source = text(*source);
+  if (const Field* changes = fs.find("changes"))
+    for (const Field& c : list(*changes)) truth.changes.push_back(text(c));
+  if (const Field* effects = fs.find("hidden_effects"))
+    for (const Field& item : list(*effects)) {
+      const Fields e = map_of(item, "hidden effect " + std::to_string(item.item),
+                              {"name", "description", "value", "nominal_value"});
+      ModelEffect effect;
+      effect.name = text(required(e, "name"));
+      if (const Field* d = e.find("description")) effect.description = text(*d);
+      effect.value = number(required(e, "value"));
+      effect.nominal_value = number(required(e, "nominal_value"));
+      truth.hidden_effects.push_back(effect);
+    }
+  if (const Field* other = fs.find("other_differences")) truth.other_differences = text(*other);
+  if (const Field* parameters = fs.find("parameters"))
+    for (const Field& entry : named(*parameters, "truth parameter")) {
+      const double value = number(entry);
+      truth.parameters.emplace_back(entry.key, value);
+      // The data's truth completes the problem's parameters; a contradiction is a mistake.
+      const int j = problem_.find_parameter(entry.key);
+      if (j < 0) continue;
+      Parameter& p = problem_.parameters[static_cast<size_t>(j)];
+      if (!p.truth)
+        p.truth = value;
+      else if (std::abs(*p.truth - value) > 1e-12 * std::max(std::abs(value), std::abs(*p.truth)))
+        fail(entry, "the data were made with " + quote(entry.key) + " = " + format(value) +
+                        " but the problem file gives it the truth " + format(*p.truth) +
+                        "; remove the problem's 'truth' or use matching data");
+    }
+  return truth;
+}
+
+MeasuredMode Loader::measured_mode(const Field& item, bool in_data_file) const {
+  std::vector<std::string> keys = {"frequency_hz", "weight", "shape_weight", "shape", "label", "pair"};
+  if (in_data_file) keys.insert(keys.end(), {"truth_mode", "truth_frequency_hz"});  // provenance, for people
+  const Fields fs = map_of(item, "measured mode " + std::to_string(item.item), keys);
+  if (const Field* k = fs.find("truth_mode")) integer_in(*k, 1, INT_MAX);
+  if (const Field* hz = fs.find("truth_frequency_hz")) positive(*hz);
   MeasuredMode m;
   m.source_line = item.line;
   const Field* label = fs.find("label");
@@ -1070,19 +1198,19 @@ Location Loader::location_of_model_error(const std::string& message) const {
   return location;
 }
 
-YAML::Node parse(const std::string& path) {
+YAML::Node parse(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
     throw ProblemError(path, 0,
-                       "cannot open the problem file " + quote(path) + ": " +
+                       "cannot open the " + what + " " + quote(path) + ": " +
                            (ec ? ec.message() : std::string("no such file")));
   if (std::filesystem::is_directory(path, ec))
-    throw ProblemError(path, 0, quote(path) + " is a directory, not a problem file");
+    throw ProblemError(path, 0, quote(path) + " is a directory, not a " + what);
   std::ifstream in(path, std::ios::binary);
   const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   if (!in.is_open() || in.bad())
     throw ProblemError(path, 0,
-                       "cannot read the problem file " + quote(path) + "; check its permissions");
+                       "cannot read the " + what + " " + quote(path) + "; check its permissions");
   try {
     return YAML::Load(text);
   } catch (const YAML::Exception& e) {
@@ -1093,7 +1221,7 @@ YAML::Node parse(const std::string& path) {
 }  // namespace
 
 Problem load_problem(const std::string& path, const LoadOptions& options) {
-  const YAML::Node root = parse(path);
+  const YAML::Node root = parse(path, "problem file");
   YAML::Node base;
   std::string base_path;
   if (root.IsMap() && root["extends"]) {
@@ -1105,7 +1233,7 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
       throw ProblemError(path, extends.Mark().line + 1,
                          "extends " + quote(extends.Scalar()) + ": no such file " + quote(base_path) +
                              " (the path is relative to this file's folder)");
-    base = parse(base_path);
+    base = parse(base_path, "problem file");
   }
   Problem problem;
   problem.path = path;

@@ -1,0 +1,118 @@
+#pragma once
+/// \file model_change.hpp
+/// A change of a model's physics ("effect"): the unit in which model-form diagnosis talks.
+/// Synthetic data hide effects in a truth model (`fullspace_calib synth --truth`), and the effect
+/// ranking names its candidates the same way, so that a synthetic study shows at a glance whether
+/// the diagnosis found what was hidden.
+///
+/// Every change sets one property and has a canonical name in the dotted `<entity>.<property>`
+/// form of calibration parameter targets (`joint2.krx`, `added_mass_top.mass`,
+/// `added_spring_base.kz`) and a description in words. Four kinds, written as compact strings:
+///
+/// | kind | text | name |
+/// |---|---|---|
+/// | set a property | `joint2.krx=3.1e5`, `foam_top.stiffness_scale=0.6`, `foam.K=4e4` | `joint2.krx` |
+/// | add a point mass | `point_mass@top:mass=0.05`, `point_mass@#17:mass=1`, `point_mass@[0.2,0,0.55]:Ixx=1e-4` | `added_mass_top.mass` |
+/// | add springs to ground | `spring@base:kz=1e7` | `added_spring_base.kz` |
+/// | add a joint | `joint@#17/#42:kx=1e6`, `joint@[0,0,1]/[0,0,1.01]:krx=10` | `added_joint_node17_node42.kx` |
+///
+/// Grammar (spaces around the tokens are allowed):
+/// \code{.unparsed}
+/// change   := setting | addition
+/// setting  := ENTITY "." PROPERTY "=" NUMBER
+/// addition := KIND "@" PLACE ["/" PLACE] ":" PROPERTY "=" NUMBER
+/// KIND     := point_mass | spring | joint       (joint takes two places, the others one)
+/// PLACE    := NODE_SET | "#" NODE_ID | "[" X "," Y "," Z "]"    (the last: the node nearest the point)
+/// \endcode
+///
+/// - A setting changes an existing property, or creates an absent one where the model allows it:
+///   a joint or spring component (kx, ky, kz, krx, kry, krz; absent means 0), a point mass's
+///   inertia (Ixx, Iyy, Izz; 0) and a block's stiffness_scale or mass_scale (absent means 1).
+/// - A point mass or spring placed on a node set acts at *each* of its nodes (as `springs:` in a
+///   problem file does); properties mass, Ixx, Iyy, Izz for a point mass, kx..krz for springs and
+///   joints, in global directions. A joint's places must each be one node.
+/// - Additions at the same place and of the same kind build up one entity:
+///   `spring@base:kx=1e6` then `spring@base:ky=1e6` give one spring with two components.
+///
+/// \code
+/// modalcal::Model model = problem.model;
+/// modalcal::ModelEffect e = modalcal::apply_model_change(&model, modalcal::parse_model_change("point_mass@top:mass=0.05"));
+/// // e.name == "added_mass_top.mass", e.nominal_value == 0, e.value == 0.05
+/// \endcode
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modalcal/model.hpp"
+#include "modalcal/types.hpp"
+
+namespace modalcal {
+
+/// Where an added entity acts: the nodes of a node set, one node by its external id, or the node
+/// nearest a point (mesh or reference node; ties go to the lower index).
+struct NodePlace {
+  enum class Kind { NodeSet, NodeId, Point };
+  Kind kind = Kind::NodeSet;
+  std::string node_set;      ///< Kind::NodeSet
+  long node_id = 0;          ///< Kind::NodeId
+  Vec3 point = Vec3::Zero(); ///< Kind::Point
+};
+
+struct ModelChange {
+  enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint };
+  Kind kind = Kind::SetProperty;
+  std::string entity;              ///< SetProperty: the block, joint, spring or point mass
+  std::vector<NodePlace> places;   ///< additions: one place, two for a joint
+  std::string property;            ///< e.g. "krx", "mass", "stiffness_scale"
+  double value = 0;                ///< the property's value in the changed model
+};
+
+/// A change as it acts on a particular model: what reports and the effect ranking show
+/// (JSON `hidden_effect: [{name, description, value, nominal_value}]`).
+struct ModelEffect {
+  std::string name;          ///< canonical `<entity>.<property>`, e.g. "added_mass_top.mass"
+  std::string description;   ///< in words, e.g. "rotational stiffness about x of joint joint2"
+  double value = 0;          ///< in the changed model
+  double nominal_value = 0;  ///< before the change: 0 for absent entities and components, 1 for absent scale factors
+};
+
+/// Parses a change string (grammar above).
+/// \throws std::invalid_argument "change 'TEXT': ..." naming what is malformed and the expected form.
+ModelChange parse_model_change(const std::string& text);
+
+/// The canonical text of a change; parse_model_change(to_string(c)) gives c back (numbers in
+/// their shortest round-trip form).
+std::string to_string(const ModelChange& change);
+
+/// Applies `change` to `*model` and returns what it did. The model stays valid (Model::validate).
+/// \throws std::invalid_argument "change 'TEXT': ..." naming the item and the likely cause: an
+///   unknown entity or node set (listing the known ones), an unknown property (listing the
+///   entity's), a value out of range, a rotational component on a node without rotations.
+///   `*model` is unchanged when it throws.
+ModelEffect apply_model_change(Model* model, const ModelChange& change);
+
+/// The name and description `change` would have on `model`, without changing it.
+/// \throws as apply_model_change.
+ModelEffect describe_model_change(const Model& model, const ModelChange& change);
+
+/// Words for a property of `model` by its name, e.g. "foam.G" -> "shear modulus of block foam".
+/// A name whose entity is unknown is returned as it is.
+std::string describe_property(const Model& model, const std::string& property_name);
+
+/// The properties of `changed` that are absent from `nominal` or have another value there, as
+/// effects (nominal_value 0 when absent, 1 for an absent scale factor), in `changed`'s order,
+/// except those named in `excluded` (e.g. the calibration parameters' targets).
+std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
+                                              const std::vector<std::string>& excluded = {});
+
+/// Reads a changes file: a YAML map with a list `changes:` of change strings and an optional
+/// `description:`. Returns nullopt if the file has no `changes` key (it is then a problem file).
+/// \throws ProblemError (problem.hpp) naming the file and line of an unreadable file, a
+///   malformed change, or a key beside `changes` and `description`.
+std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path);
+
+/// Shortest text that reads back as exactly `value` (std::to_chars), e.g. "0.05", "3.1e+05".
+std::string format_round_trip(double value);
+
+}  // namespace modalcal

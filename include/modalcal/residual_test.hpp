@@ -1,0 +1,79 @@
+#pragma once
+/// \file residual_test.hpp
+/// Is the misfit left after calibration physics or noise? A chi-square test of the residual
+/// against the stated measurement noise, overall and per mode.
+///
+/// Noise model (the one `fullspace_calib synth` draws from): a measured frequency is
+/// \f$f_m = f\,(1 + \sigma_f z)\f$ and each sensor value of a measured shape is
+/// \f$\phi_{m,k} = \phi_k + \sigma_s \max_k|\phi_{m,k}|\, z_k\f$, with independent standard normal z.
+/// If the model is right and calibrated, the noise-normalized residual
+/// \f[ X^2 = \sum_i \Big(\frac{f_i - f_{m,i}}{\sigma_f f_{m,i}}\Big)^2
+///        + \sum_i \frac{\|\phi_{m,i} - \psi_i\|^2}{(\sigma_s \max_k|\psi_{i,k}|)^2},
+///   \qquad \psi_i = \frac{y_i^T \phi_{m,i}}{y_i^T y_i}\, y_i \f]
+/// is \f$\chi^2\f$ with \f$\nu = \sum_i (1 + (s_i - 1)) - n_p\f$ degrees of freedom (one per frequency,
+/// s − 1 per shape of s sensor values since its scale is fitted, minus the calibrated parameters).
+/// \f$\psi_i\f$ is the best multiple of the paired model mode's sensor readings \f$y_i\f$, so
+/// \f$\|\phi_m - \psi\|^2 = \|\phi_m\|^2(1-\mathrm{MAC})\f$; the noise scale is taken from it and not
+/// from the measured shape, whose largest entry is biased upward by the noise itself. A large \f$X^2\f$ (p-value below the significance level) says the model
+/// cannot reach the data within its noise: a model-form error is likely. Each mode is also tested
+/// alone (Bonferroni: level / number of modes) to say which modes carry it.
+///
+/// \code
+/// modalcal::Objective objective(problem);
+/// modalcal::Evaluation e = objective.evaluate(calibrated_p);
+/// modalcal::ResidualTest t = modalcal::test_residual(objective, e, {0.002, 0.02}, calibrated_p.size());
+/// std::cout << t.verdict;
+/// \endcode
+
+#include <string>
+#include <vector>
+
+#include "modalcal/objective.hpp"
+#include "modalcal/problem.hpp"
+
+namespace modalcal {
+
+struct ResidualTestOptions {
+  /// Significance level of the overall test; a mode is flagged at level / number of modes.
+  /// Range: (0, 0.5). Default 0.01.
+  double significance = 0.01;
+  bool IsValid(std::string* error) const;
+};
+
+/// One measured mode's share of the residual.
+struct ModeResidual {
+  int measured = 0;          ///< 0-based index into Problem::measured
+  std::string label;
+  int model = 0;             ///< 0-based elastic model mode it was paired with
+  double frequency_error = 0;  ///< (f - f_m) / f_m
+  double frequency_chi2 = 0;   ///< its noise-normalized square (0 if the eigenvalue term is off)
+  double shape_chi2 = 0;       ///< 0 without a measured shape or with the shape term off
+  int dof = 0;                 ///< 1 for the frequency, s - 1 for a shape of s values
+  double p_value = 1;          ///< of this mode's chi-square alone
+  bool flagged = false;        ///< p_value < significance / number of tested modes
+};
+
+struct ResidualTest {
+  double statistic = 0;      ///< X^2
+  int dof = 0;               ///< nu (at least 1)
+  double p_value = 1;        ///< P(chi2_nu > X^2)
+  /// X^2 / nu: about 1 when the residual is noise.
+  double reduced_chi2 = 0;
+  bool model_form_error = false;  ///< p_value < significance
+  std::vector<ModeResidual> modes;
+  std::string verdict;       ///< one plain sentence or two, naming the modes that carry the misfit
+};
+
+/// Tests the residual of `evaluation` (`objective` evaluated at the calibrated parameters)
+/// against `noise`. `num_parameters` calibrated parameters are subtracted from the degrees of
+/// freedom; shapes are tested only when noise.shape > 0.
+/// \throws std::invalid_argument if noise.frequency is not positive, the evaluation failed, or
+///         the options are invalid.
+ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
+                           int num_parameters, const ResidualTestOptions& options = {});
+
+/// Upper tail of the chi-square distribution, \f$P(\chi^2_\nu > x) = Q(\nu/2, x/2)\f$ (regularized
+/// upper incomplete gamma function). Range: nu >= 1, x >= 0.
+double chi_square_upper_tail(double x, int nu);
+
+}  // namespace modalcal

@@ -1,0 +1,72 @@
+#pragma once
+/// \file synthesis.hpp
+/// Synthetic measured modes from a truth model that may hold physics the nominal model lacks:
+/// the test bed of model-form diagnosis. The truth is the nominal model at its parameters'
+/// truth values, or a truth problem file, with any number of changes (model_change.hpp) on top;
+/// what it hides is recorded (SyntheticTruth) so that a diagnosis can be checked against it.
+///
+/// Noise (MeasurementNoise): the draws come from std::mt19937_64 seeded with `seed` and a
+/// Box-Muller transform written out here (std::normal_distribution is implementation defined),
+/// so the same seed gives the same data on every platform. Draw order: for each mode in turn its
+/// frequency, then its shape values in sensor order; the draws do not depend on the noise levels.
+///
+/// \code
+/// modalcal::TruthModel truth = modalcal::make_truth(nominal, nullptr, {modalcal::parse_model_change("joint2.krx=3e5")});
+/// modalcal::SynthesisOptions options;
+/// options.modes = {1, 2, 3};
+/// options.noise.frequency = 0.005;
+/// modalcal::MeasuredData data = modalcal::synthesize_measured_data(nominal, truth, nominal.sensors, options);
+/// \endcode
+
+#include <vector>
+
+#include "modalcal/measured_data.hpp"
+#include "modalcal/model_change.hpp"
+#include "modalcal/problem.hpp"
+
+namespace modalcal {
+
+/// A truth model ready to solve: `problem.model` has every value substituted (it has no
+/// parameters), `problem.options` decide the solve, and `record` says what it hides.
+struct TruthModel {
+  Problem problem;
+  SyntheticTruth record;
+};
+
+/// Builds the truth model.
+/// - Without `truth_file`: the nominal model with the nominal parameters' truth values
+///   substituted, then `changes` applied in order.
+/// - With `truth_file` (a problem, typically one that `extends:` the nominal model's file): its
+///   model, with the nominal parameters' truth values substituted into properties of the same
+///   name, then its own parameters' truth values, then `changes`.
+///
+/// The record lists as hidden effects every property that differs from the nominal model and is
+/// not a nominal parameter's target, and the nominal parameters' truth-model values.
+/// \throws std::invalid_argument naming the change and cause if a change fails to apply or sets
+///   a calibration parameter's target (that is not hidden: give the parameter a `truth` instead).
+TruthModel make_truth(const Problem& nominal, const Problem* truth_file, const std::vector<ModelChange>& changes);
+
+/// The records of sensors of `model` (node id, direction and position of each).
+std::vector<SensorRecord> sensor_records(const Model& model, const std::vector<Sensor>& sensors);
+
+struct SynthesisOptions {
+  /// 1-based elastic modes of the truth model to measure, in this order. Range: non-empty,
+  /// each >= 1, no repeats.
+  std::vector<int> modes;
+  /// Measure shapes at the sensors (pair by MAC); without, frequencies only, paired by mode index.
+  bool shapes = true;
+  MeasurementNoise noise;
+  /// Returns false and names the field, its value and the violated condition.
+  bool IsValid(std::string* error) const;
+};
+
+/// Measured modes of `truth` at `sensors` (sensors of the nominal model, located in the truth
+/// model by position), with noise; the data records sensors, noise, truth and per mode the truth
+/// mode and its noise-free frequency. Shapes are scaled to a largest magnitude of 1 (largest entry
+/// positive) before noise is added.
+/// \throws std::invalid_argument for invalid options, a sensor with no truth-model node at its
+///   position, or a mode that no sensor sees; std::runtime_error if the truth model's solve fails.
+MeasuredData synthesize_measured_data(const Problem& nominal, const TruthModel& truth,
+                                      const std::vector<Sensor>& sensors, const SynthesisOptions& options);
+
+}  // namespace modalcal

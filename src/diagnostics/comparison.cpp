@@ -1,0 +1,145 @@
+// Test-analysis correlation: pairing, MAC matrix, COMAC and SEREP cross-orthogonality
+// (formulas in comparison.hpp).
+#include "modalcal/comparison.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "modalcal/objective.hpp"
+#include "objective/shape_misfit.hpp"
+
+namespace modalcal {
+
+bool ComparisonOptions::IsValid(std::string* error) const {
+  if (!(unpaired_mac >= 0 && unpaired_mac <= 1)) {
+    if (error) *error = "unpaired_mac = " + std::to_string(unpaired_mac) + ": must be in [0, 1]";
+    return false;
+  }
+  if (!(serep_condition > 0 && serep_condition < 1)) {
+    if (error) *error = "serep_condition = " + std::to_string(serep_condition) + ": must be in (0, 1)";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+Vector comac(const std::vector<Vector>& measured, const std::vector<Vector>& model) {
+  const Eigen::Index ns = measured.front().size();
+  Vector numerator = Vector::Zero(ns), measured_squares = Vector::Zero(ns), model_squares = Vector::Zero(ns);
+  for (size_t i = 0; i < measured.size(); ++i) {
+    const Vector scaled = measured[i] * (model[i].dot(measured[i]) / measured[i].squaredNorm());  // MSF
+    numerator += scaled.cwiseProduct(model[i]).cwiseAbs();
+    measured_squares += scaled.cwiseAbs2();
+    model_squares += model[i].cwiseAbs2();
+  }
+  Vector c(ns);
+  for (Eigen::Index s = 0; s < ns; ++s) {
+    const double denominator = measured_squares[s] * model_squares[s];
+    c[s] = denominator > 0 ? numerator[s] * numerator[s] / denominator : NAN;
+  }
+  return c;
+}
+
+}  // namespace
+
+ModalComparison compare_modes(const Problem& problem, const Vector& p, const ComparisonOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("ComparisonOptions: " + error);
+  Objective objective(problem);
+  const Evaluation e = objective.evaluate(p);
+  if (!e.ok) throw std::runtime_error(e.message);
+  const Matrix model_at_sensors = detail::sensor_matrix(problem, objective.system().dof_map()) * e.modal.modes;
+  const int num_model = static_cast<int>(e.modal.eigenvalues.size());
+  const int num_measured = static_cast<int>(problem.measured.size());
+
+  ModalComparison c;
+  c.warnings = e.warnings;
+  c.model_hz.resize(num_model);
+  for (int k = 0; k < num_model; ++k) c.model_hz[k] = frequency_hz(e.modal.eigenvalues[k]);
+  c.mac = Matrix::Constant(num_measured, num_model, NAN);
+  for (int i = 0; i < num_measured; ++i)
+    if (problem.measured[i].shape.size() > 0)
+      for (int k = 0; k < num_model; ++k) c.mac(i, k) = mac(problem.measured[i].shape, model_at_sensors.col(k));
+
+  std::vector<bool> paired(num_model, false);
+  std::vector<Vector> measured_shapes, model_shapes;
+  for (const PairedMode& pair : e.pairs) {
+    ComparedPair row;
+    row.measured = pair.measured;
+    row.model = pair.model;
+    row.measured_hz = pair.measured_hz;
+    row.model_hz = pair.model_hz;
+    row.error_percent = 100 * (pair.model_hz / pair.measured_hz - 1);
+    row.mac = pair.mac;
+    paired[pair.model] = true;
+    if (row.mac >= 0) {
+      if (row.mac < options.unpaired_mac) c.unpaired_measured.push_back(static_cast<int>(c.pairs.size()));
+      c.shape_pairs.push_back(static_cast<int>(c.pairs.size()));
+      measured_shapes.push_back(problem.measured[pair.measured].shape);
+      model_shapes.push_back(model_at_sensors.col(pair.model));
+    }
+    c.pairs.push_back(row);
+  }
+  for (int k = 0; k < num_model; ++k)
+    if (!paired[k]) c.unpaired_model.push_back(k);
+  if (measured_shapes.empty()) {
+    c.cross_orthogonality_note = "no measured shapes";
+    return c;
+  }
+  c.comac = comac(measured_shapes, model_shapes);
+
+  // SEREP test-analysis mass: from every computed mode when the sensors can tell them apart
+  // (then a measured shape's part outside the paired modes shows), else from the paired ones.
+  const Eigen::Index ns = model_at_sensors.rows();
+  std::vector<int> paired_modes;
+  for (int index : c.shape_pairs) paired_modes.push_back(c.pairs[static_cast<size_t>(index)].model);
+  std::vector<int> all_modes(static_cast<size_t>(num_model));
+  for (int k = 0; k < num_model; ++k) all_modes[static_cast<size_t>(k)] = k;
+  Matrix pseudo_inverse;
+  for (const std::vector<int>& basis : {all_modes, paired_modes}) {
+    const Eigen::Index nb = static_cast<Eigen::Index>(basis.size());
+    if (ns < nb) {
+      c.cross_orthogonality_note = "SEREP needs at least as many sensor DOFs (" + std::to_string(ns) +
+                                   ") as model modes in its basis (" + std::to_string(nb) + ")";
+      continue;
+    }
+    Matrix phi_a(ns, nb);
+    for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(basis[static_cast<size_t>(j)]);
+    const Eigen::JacobiSVD<Matrix> svd(phi_a, Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Vector& sigma = svd.singularValues();
+    if (!(sigma[nb - 1] > options.serep_condition * sigma[0])) {
+      c.cross_orthogonality_note = "the " + std::to_string(nb) + " model modes of the SEREP basis are not independent " +
+                                   "at the sensors (singular values " + std::to_string(sigma[0]) + " to " +
+                                   std::to_string(sigma[nb - 1]) + ")";
+      continue;
+    }
+    pseudo_inverse = svd.matrixV() * sigma.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
+    c.serep_modes = basis;
+    c.cross_orthogonality_note.clear();
+    break;
+  }
+  if (c.serep_modes.empty()) return c;
+  const Matrix test_mass = pseudo_inverse.transpose() * pseudo_inverse;
+  const Eigen::Index nb = static_cast<Eigen::Index>(c.serep_modes.size());
+  Matrix phi_a(ns, nb);
+  for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(c.serep_modes[static_cast<size_t>(j)]);
+  c.cross_orthogonality.resize(static_cast<Eigen::Index>(c.shape_pairs.size()), nb);
+  for (size_t i = 0; i < c.shape_pairs.size(); ++i) {
+    ComparedPair& pair = c.pairs[static_cast<size_t>(c.shape_pairs[i])];
+    const Eigen::Index column =
+        std::find(c.serep_modes.begin(), c.serep_modes.end(), pair.model) - c.serep_modes.begin();
+    Vector phi = measured_shapes[i];
+    const double norm = phi.dot(test_mass * phi);
+    phi /= norm > 0 ? std::sqrt(norm) : 1.0;
+    if (phi.dot(test_mass * phi_a.col(column)) < 0) phi = -phi;  // the sign of its pair
+    const Eigen::Index row = static_cast<Eigen::Index>(i);
+    c.cross_orthogonality.row(row) = (norm > 0 ? 1.0 : NAN) * (phi.transpose() * test_mass * phi_a);
+    pair.cross_orthogonality = c.cross_orthogonality(row, column);
+  }
+  return c;
+}
+
+}  // namespace modalcal

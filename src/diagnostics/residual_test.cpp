@@ -1,0 +1,142 @@
+// The chi-square test of the calibrated residual against the stated noise (residual_test.hpp).
+
+#include "modalcal/residual_test.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "objective/shape_misfit.hpp"
+
+namespace modalcal {
+
+namespace {
+
+// Regularized lower incomplete gamma P(a, x) by its power series, for x < a + 1:
+// P = e^{-x} x^a / Gamma(a + 1) * sum_n x^n / ((a + 1) ... (a + n)).
+double lower_gamma_series(double a, double x) {
+  double term = 1.0 / a, sum = term;
+  for (int n = 1; n < 1000 && std::abs(term) > 1e-16 * std::abs(sum); ++n) {
+    term *= x / (a + n);
+    sum += term;
+  }
+  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * sum;
+}
+
+// Regularized upper incomplete gamma Q(a, x) by Legendre's continued fraction (modified Lentz),
+// for x >= a + 1: Q = e^{-x} x^a / Gamma(a) / (x + 1 - a - 1(1 - a)/(x + 3 - a - 2(2 - a)/(...))).
+double upper_gamma_fraction(double a, double x) {
+  constexpr double tiny = 1e-300;
+  double b = x + 1 - a, c = 1 / tiny, d = 1 / b, h = d;
+  for (int n = 1; n < 1000; ++n) {
+    const double an = -n * (n - a);
+    b += 2;
+    d = an * d + b;
+    if (std::abs(d) < tiny) d = tiny;
+    c = b + an / c;
+    if (std::abs(c) < tiny) c = tiny;
+    d = 1 / d;
+    const double delta = d * c;
+    h *= delta;
+    if (std::abs(delta - 1) < 1e-16) break;
+  }
+  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * h;
+}
+
+std::string percent(double x) {
+  std::ostringstream s;
+  s.precision(3);
+  s << 100 * x << " %";
+  return s.str();
+}
+
+}  // namespace
+
+bool ResidualTestOptions::IsValid(std::string* error) const {
+  if (!(significance > 0 && significance < 0.5)) {
+    if (error) *error = "ResidualTestOptions::significance = " + std::to_string(significance) + " must lie in (0, 0.5)";
+    return false;
+  }
+  return true;
+}
+
+double chi_square_upper_tail(double x, int nu) {
+  if (nu < 1) throw std::invalid_argument("chi_square_upper_tail: nu = " + std::to_string(nu) + " must be >= 1");
+  if (!(x >= 0)) throw std::invalid_argument("chi_square_upper_tail: x must be >= 0 and not NaN");
+  if (x == 0) return 1;
+  const double a = 0.5 * nu, h = 0.5 * x;
+  return h < a + 1 ? 1 - lower_gamma_series(a, h) : upper_gamma_fraction(a, h);
+}
+
+ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
+                           int num_parameters, const ResidualTestOptions& options) {
+  const Problem& problem = objective.problem();
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument(error);
+  if (!evaluation.ok) throw std::invalid_argument("test_residual: the evaluation failed: " + evaluation.message);
+  if (!(noise.frequency > 0))
+    throw std::invalid_argument("test_residual: the frequency noise must be > 0 (state it under measured: noise:)");
+
+  const SparseMatrix sensors = detail::sensor_matrix(problem, objective.system().dof_map());
+  ResidualTest test;
+  int dof = 0;
+  for (const PairedMode& pair : evaluation.pairs) {
+    const MeasuredMode& measured = problem.measured[pair.measured];
+    ModeResidual m;
+    m.measured = pair.measured;
+    m.label = measured.label;
+    m.model = pair.model;
+    m.frequency_error = (pair.model_hz - pair.measured_hz) / pair.measured_hz;
+    if (measured.weight > 0) {
+      m.frequency_chi2 = std::pow(m.frequency_error / noise.frequency, 2);
+      m.dof += 1;
+    }
+    const bool shape_tested = measured.shape_weight > 0 && measured.shape.size() > 1 && noise.shape > 0 && pair.mac >= 0;
+    if (shape_tested) {
+      const Vector y = sensors * evaluation.modal.modes.col(pair.model);
+      const Vector fitted = (y.dot(measured.shape) / y.squaredNorm()) * y;
+      const double sigma = noise.shape * fitted.cwiseAbs().maxCoeff();
+      m.shape_chi2 = (measured.shape - fitted).squaredNorm() / (sigma * sigma);
+      m.dof += static_cast<int>(measured.shape.size()) - 1;
+    }
+    if (m.dof == 0) continue;  // switched off: says nothing about the model
+    dof += m.dof;
+    test.statistic += m.frequency_chi2 + m.shape_chi2;
+    m.p_value = chi_square_upper_tail(m.frequency_chi2 + m.shape_chi2, m.dof);
+    test.modes.push_back(m);
+  }
+  if (test.modes.empty()) throw std::invalid_argument("test_residual: every measured mode is switched off");
+
+  test.dof = std::max(1, dof - num_parameters);
+  test.p_value = chi_square_upper_tail(test.statistic, test.dof);
+  test.reduced_chi2 = test.statistic / test.dof;
+  test.model_form_error = test.p_value < options.significance;
+  const double mode_level = options.significance / static_cast<double>(test.modes.size());
+  std::vector<std::string> carriers;
+  for (ModeResidual& m : test.modes) {
+    m.flagged = m.p_value < mode_level;
+    if (m.flagged) carriers.push_back(m.label + " (" + percent(m.frequency_error) + " in frequency)");
+  }
+
+  std::ostringstream v;
+  v.precision(3);
+  v << "chi-square " << test.statistic << " on " << test.dof << " degrees of freedom (" << test.reduced_chi2
+    << " per degree of freedom, p = " << test.p_value << "): ";
+  if (test.model_form_error) {
+    v << "the residual is larger than the stated noise (frequency " << percent(noise.frequency);
+    if (noise.shape > 0) v << ", shape " << percent(noise.shape);
+    v << ") can explain; a model-form error is likely.";
+    if (!carriers.empty()) {
+      v << " Modes carrying it:";
+      for (size_t k = 0; k < carriers.size(); ++k) v << (k ? ", " : " ") << carriers[k];
+      v << ".";
+    }
+  } else {
+    v << "the residual is consistent with the stated noise; no model-form error is detected.";
+  }
+  test.verdict = v.str();
+  return test;
+}
+
+}  // namespace modalcal

@@ -1,0 +1,44 @@
+// Reads a list of model changes from a YAML file (see load_model_changes in model_change.hpp).
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+
+#include "modalcal/model_change.hpp"
+#include "modalcal/problem.hpp"
+
+namespace modalcal {
+
+std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw ProblemError(path, 0, "no such changes or problem file");
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw ProblemError(path, e.mark.is_null() ? 0 : e.mark.line + 1, "YAML syntax error: " + e.msg);
+  }
+  if (!root.IsMap() || !root["changes"]) return std::nullopt;
+  for (const auto& kv : root) {
+    const std::string key = kv.first.as<std::string>("");
+    if (key != "changes" && key != "description")
+      throw ProblemError(path, kv.first.Mark().line + 1,
+                         "unknown key '" + key + "' in a changes file, which holds only 'changes' and 'description'; "
+                         "a truth model with more than changes is a problem file (it may 'extends:' the nominal one)");
+  }
+  const YAML::Node list = root["changes"];
+  if (!list.IsSequence() || list.size() == 0)
+    throw ProblemError(path, list.Mark().line + 1, "'changes' must be a non-empty list of change strings, e.g. "
+                                                   "[\"joint2.krx=3e5\", \"point_mass@top:mass=0.05\"]");
+  std::vector<ModelChange> changes;
+  for (const YAML::Node& item : list) {
+    const int line = item.Mark().line + 1;
+    if (!item.IsScalar()) throw ProblemError(path, line, "expected a change string, e.g. joint2.krx=3e5");
+    try {
+      changes.push_back(parse_model_change(item.Scalar()));
+    } catch (const std::invalid_argument& e) {
+      throw ProblemError(path, line, e.what());
+    }
+  }
+  return changes;
+}
+
+}  // namespace modalcal

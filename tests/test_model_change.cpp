@@ -1,0 +1,271 @@
+// Model changes ("effects"): the change strings' grammar, what applying a change does to the
+// model (checked through the physics it assembles), and the errors that name the item and cause.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "modalcal/assembly.hpp"
+#include "modalcal/eigen.hpp"
+#include "modalcal/model_change.hpp"
+#include "modalcal/problem.hpp"
+#include "test_util.hpp"
+
+namespace modalcal {
+namespace {
+
+using testing::WriteTempFile;
+
+// A cantilevered bar of one block (9 x 2 x 3 = 54 mesh nodes) with a node set at the tip, coupled
+// to reference node hub (55), joined in translation to reference node arm (56) that carries a
+// point mass and has its rotations fixed.
+const char* const kBarWithTip = R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
+blocks:
+  bar: {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
+  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
+  arm_node: {nodes: [56]}
+reference_nodes:
+  hub: [4.5, 0.25, 0.375]
+  arm: [4.5, 0.25, 0.375]
+rigid_couplings:
+  - {reference: hub, node_set: tip}
+joints:
+  link: {nodes: [hub, arm], kx: 100, ky: 100, kz: 100}
+point_masses:
+  weight: {node: arm, mass: 0.1}
+fixed:
+  - {node_set: root, dofs: [x, y, z]}
+  - {node_set: arm_node, dofs: [rx, ry, rz]}
+)";
+
+Model LoadBar() { return load_problem(WriteTempFile("bar.yaml", kBarWithTip)).model; }
+
+Vector Frequencies(const Model& model, int n) {
+  ParametricSystem system(model, {});
+  SparseMatrix K, M;
+  system.assemble(Vector(), &K, &M);
+  ModalOptions options;
+  options.num_modes = n;
+  options.max_rigid_modes = 0;
+  ModalSolver solver(system.pattern(), options);
+  const ModalResult r = solver.solve(K, M);
+  EXPECT_EQ(r.status, EigenStatus::Successful) << r.message;
+  return r.eigenvalues.cwiseSqrt();
+}
+
+/// apply_model_change must throw std::invalid_argument whose message holds every fragment, and
+/// leave the model as it was.
+void ExpectChangeError(const std::string& text, const std::vector<std::string>& fragments) {
+  Model model = LoadBar();
+  const size_t properties = model.properties.size(), masses = model.point_masses.size();
+  try {
+    apply_model_change(&model, parse_model_change(text));
+    ADD_FAILURE() << "expected an error for " << text;
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    for (const std::string& f : fragments) EXPECT_NE(what.find(f), std::string::npos) << "'" << f << "' not in: " << what;
+  }
+  EXPECT_EQ(model.properties.size(), properties) << text;
+  EXPECT_EQ(model.point_masses.size(), masses) << text;
+}
+
+void ExpectParseError(const std::string& text, const std::string& fragment) {
+  try {
+    parse_model_change(text);
+    ADD_FAILURE() << "expected a parse error for " << text;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("change '"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ModelChange, ParsesEveryFormAndPrintsItBack) {
+  ModelChange c = parse_model_change(" joint2.krx = 3.1e5 ");
+  EXPECT_EQ(c.kind, ModelChange::Kind::SetProperty);
+  EXPECT_EQ(c.entity, "joint2");
+  EXPECT_EQ(c.property, "krx");
+  EXPECT_EQ(c.value, 3.1e5);
+  EXPECT_EQ(to_string(c), "joint2.krx=310000");
+
+  c = parse_model_change("point_mass@top:mass=0.05");
+  EXPECT_EQ(c.kind, ModelChange::Kind::AddPointMass);
+  ASSERT_EQ(c.places.size(), 1u);
+  EXPECT_EQ(c.places[0].kind, NodePlace::Kind::NodeSet);
+  EXPECT_EQ(c.places[0].node_set, "top");
+  EXPECT_EQ(to_string(c), "point_mass@top:mass=0.05");
+
+  c = parse_model_change("joint@#17/[0.5, -1, 2e-3]:kx=1e6");
+  EXPECT_EQ(c.kind, ModelChange::Kind::AddJoint);
+  ASSERT_EQ(c.places.size(), 2u);
+  EXPECT_EQ(c.places[0].kind, NodePlace::Kind::NodeId);
+  EXPECT_EQ(c.places[0].node_id, 17);
+  EXPECT_EQ(c.places[1].kind, NodePlace::Kind::Point);
+  EXPECT_EQ(c.places[1].point, Vec3(0.5, -1, 2e-3));
+  // The canonical text reads back as the same change.
+  const ModelChange again = parse_model_change(to_string(c));
+  EXPECT_EQ(to_string(again), to_string(c));
+  EXPECT_EQ(again.places[1].point, c.places[1].point);
+
+  EXPECT_EQ(parse_model_change("spring@base:kz=1e7").kind, ModelChange::Kind::AddSpring);
+  EXPECT_EQ(parse_model_change("foam.stiffness_scale=0.6").property, "stiffness_scale");
+}
+
+TEST(ModelChange, MalformedStringsSayWhatIsExpected) {
+  ExpectParseError("joint2.krx", "no '=VALUE'");
+  ExpectParseError("joint2.krx=abc", "finite number");
+  ExpectParseError("joint2.krx=nan", "finite number");
+  ExpectParseError("joint2=5", "ENTITY.PROPERTY");
+  ExpectParseError("blob@top:mass=1", "unknown kind 'blob'");
+  ExpectParseError("point_mass@top=1", "no ':PROPERTY'");
+  ExpectParseError("point_mass@[1,2]:mass=1", "three numbers");
+  ExpectParseError("point_mass@#x:mass=1", "node id");
+  ExpectParseError("", "empty");
+}
+
+TEST(ModelChange, SettingAnExistingPropertyRecordsBothValues) {
+  Model model = LoadBar();
+  const ModelEffect e = apply_model_change(&model, parse_model_change("link.kx=150"));
+  EXPECT_EQ(e.name, "link.kx");
+  EXPECT_EQ(e.description, "stiffness along x of joint link");
+  EXPECT_EQ(e.nominal_value, 100);
+  EXPECT_EQ(e.value, 150);
+  EXPECT_EQ(model.properties[model.find_property("link.kx")].value, 150);
+  EXPECT_EQ(describe_property(model, "bar.E"), "Young's modulus of block bar");
+}
+
+TEST(ModelChange, AbsentScaleFactorsAndComponentsAreCreatedAndAct) {
+  const Model nominal = LoadBar();
+  const Vector f0 = Frequencies(nominal, 4);
+  // Stiffness / 4 and mass x 4 each halve every frequency of the (one-block) bar... almost: the
+  // joint and point mass at the tip are not scaled, so compare with the same change of all.
+  Model softer = nominal;
+  ModelEffect e = apply_model_change(&softer, parse_model_change("bar.stiffness_scale=0.25"));
+  EXPECT_EQ(e.name, "bar.stiffness_scale");
+  EXPECT_EQ(e.nominal_value, 1);  // an absent scale factor multiplies by 1
+  EXPECT_EQ(e.description, "stiffness multiplier of block bar");
+  apply_model_change(&softer, parse_model_change("link.kx=25"));
+  apply_model_change(&softer, parse_model_change("link.ky=25"));
+  apply_model_change(&softer, parse_model_change("link.kz=25"));
+  EXPECT_LT(testing::RelativeDifference(Frequencies(softer, 4), f0 / 2), 1e-9);
+
+  Model heavier = nominal;
+  apply_model_change(&heavier, parse_model_change("bar.mass_scale=4"));
+  apply_model_change(&heavier, parse_model_change("weight.mass=0.4"));
+  EXPECT_LT(testing::RelativeDifference(Frequencies(heavier, 4), f0 / 2), 1e-9);
+
+  // An absent joint component is zero before: krx between the two reference nodes.
+  Model twisted = nominal;
+  e = apply_model_change(&twisted, parse_model_change("link.krx=5"));
+  EXPECT_EQ(e.nominal_value, 0);
+  EXPECT_EQ(e.description, "rotational stiffness about x of joint link");
+  EXPECT_NE(twisted.joints[0].stiffness[3], kNoProperty);
+}
+
+TEST(ModelChange, PointMassOnANodeSetSitsOnEachNodeAndGrowsOnRepeat) {
+  Model model = LoadBar();
+  const int tip_nodes = static_cast<int>(model.find_node_set("tip")->nodes.size());
+  const double mass0 = ParametricSystem(model, {}).total_mass(Vector());
+  ModelEffect e = apply_model_change(&model, parse_model_change("point_mass@tip:mass=0.05"));
+  EXPECT_EQ(e.name, "added_mass_tip.mass");
+  EXPECT_EQ(e.nominal_value, 0);
+  EXPECT_NE(e.description.find("node set tip"), std::string::npos) << e.description;
+  EXPECT_NE(e.description.find(std::to_string(tip_nodes) + " nodes"), std::string::npos) << e.description;
+  EXPECT_NEAR(ParametricSystem(model, {}).total_mass(Vector()), mass0 + 0.05 * tip_nodes, 1e-12);
+  // The same place again changes the same entity (nothing new is added).
+  const size_t masses = model.point_masses.size();
+  e = apply_model_change(&model, parse_model_change("point_mass@tip:mass=0.1"));
+  EXPECT_EQ(e.nominal_value, 0.05);
+  EXPECT_EQ(model.point_masses.size(), masses);
+  EXPECT_NEAR(ParametricSystem(model, {}).total_mass(Vector()), mass0 + 0.1 * tip_nodes, 1e-12);
+  // ... and a setting by its name changes every node's share.
+  apply_model_change(&model, parse_model_change("added_mass_tip.mass=0.2"));
+  EXPECT_NEAR(ParametricSystem(model, {}).total_mass(Vector()), mass0 + 0.2 * tip_nodes, 1e-12);
+}
+
+TEST(ModelChange, SpringsJointsAndPointsNameTheirNodes) {
+  Model model = LoadBar();
+  const Vector f0 = Frequencies(model, 2);
+  apply_model_change(&model, parse_model_change("spring@tip:ky=50"));
+  const ModelEffect e = apply_model_change(&model, parse_model_change("spring@tip:kz=50"));
+  EXPECT_EQ(e.name, "added_spring_tip.kz");
+  EXPECT_EQ(e.description.rfind("added spring to ground along z at node set tip", 0), 0u) << e.description;
+  ASSERT_EQ(model.ground_springs.size(), 1u);  // one spring with both components
+  EXPECT_NE(model.ground_springs[0].stiffness[1], kNoProperty);
+  EXPECT_NE(model.ground_springs[0].stiffness[2], kNoProperty);
+  const Vector f1 = Frequencies(model, 2);
+  EXPECT_GT(f1[0], f0[0]);  // supporting the tip stiffens the bending modes
+
+  // Reference nodes hub and arm carry rotations; their ids follow the mesh nodes'.
+  const long hub = model.node_ids[model.joints[0].node_a], arm = model.node_ids[model.joints[0].node_b];
+  const ModelEffect j =
+      apply_model_change(&model, parse_model_change("joint@#" + std::to_string(hub) + "/#" + std::to_string(arm) + ":krx=3"));
+  EXPECT_EQ(j.name, "added_joint_node" + std::to_string(hub) + "_node" + std::to_string(arm) + ".krx");
+  EXPECT_NE(j.description.find("rotational stiffness about x"), std::string::npos) << j.description;
+
+  const ModelEffect p = apply_model_change(&model, parse_model_change("point_mass@[0.1,0.01,0]:mass=1"));
+  EXPECT_EQ(p.name, "added_mass_node1.mass");  // node 1 is at the origin
+  EXPECT_NE(p.description.find("nearest to [0.1,0.01,0]"), std::string::npos) << p.description;
+}
+
+TEST(ModelChange, ErrorsNameTheItemAndLikelyCause) {
+  ExpectChangeError("nosuch.kx=1", {"change 'nosuch.kx=1'", "unknown entity 'nosuch'",
+                                    "known blocks, joints, springs and point masses: bar, link, weight"});
+  ExpectChangeError("link.foo=1", {"joint 'link' has no property 'foo'", "its properties: kx, ky, kz, krx, kry, krz"});
+  ExpectChangeError("bar.K=1", {"block 'bar' has no property 'K'", "E, nu, density, stiffness_scale, mass_scale"});
+  ExpectChangeError("bar.nu=0.5", {"Poisson's ratio", "(-1, 0.5)"});
+  ExpectChangeError("link.kx=-1", {"must not be negative"});
+  ExpectChangeError("bar.stiffness_scale=0", {"must be positive"});
+  ExpectChangeError("point_mass@nowhere:mass=1", {"unknown node set 'nowhere'", "known node sets: root, tip, arm_node"});
+  ExpectChangeError("point_mass@#99999:mass=1", {"no node with id 99999", "node ids run from 1 to"});
+  ExpectChangeError("spring@root:krx=1", {"krx acts on rotations", "has none"});
+  ExpectChangeError("point_mass@tip:foo=1", {"no property 'foo'", "mass, Ixx, Iyy, Izz"});
+  ExpectChangeError("joint@tip/#1:kx=1", {"a joint connects two nodes", "node set 'tip' has"});
+  ExpectChangeError("joint@#1:kx=1", {"joint takes 2 places"});
+  ExpectChangeError("joint@#1/#1:kx=1", {"both ends of the joint are node 1"});
+}
+
+TEST(ModelChange, PropertyDifferencesListWhatChangedExceptTheExcluded) {
+  const Model nominal = LoadBar();
+  Model changed = nominal;
+  apply_model_change(&changed, parse_model_change("link.kx=150"));
+  apply_model_change(&changed, parse_model_change("bar.mass_scale=1.1"));
+  apply_model_change(&changed, parse_model_change("point_mass@tip:mass=0.05"));
+  apply_model_change(&changed, parse_model_change("bar.E=900"));
+  const std::vector<ModelEffect> d = property_differences(nominal, changed, {"bar.E"});
+  ASSERT_EQ(d.size(), 3u);
+  EXPECT_EQ(d[0].name, "link.kx");
+  EXPECT_EQ(d[0].nominal_value, 100);
+  EXPECT_EQ(d[1].name, "bar.mass_scale");
+  EXPECT_EQ(d[1].nominal_value, 1);
+  EXPECT_EQ(d[2].name, "added_mass_tip.mass");
+  EXPECT_EQ(d[2].nominal_value, 0);
+  EXPECT_EQ(d[2].value, 0.05);
+  EXPECT_EQ(d[2].description, "mass of point mass added_mass_tip");
+  EXPECT_TRUE(property_differences(nominal, nominal).empty());
+}
+
+TEST(ModelChange, ChangesFileIsReadWithLinesInErrors) {
+  const std::string good = WriteTempFile("changes.yaml", "description: stiffer joint\nchanges:\n  - link.kx=150\n  - point_mass@tip:mass=0.05\n");
+  const auto changes = load_model_changes(good);
+  ASSERT_TRUE(changes);
+  ASSERT_EQ(changes->size(), 2u);
+  EXPECT_EQ(to_string((*changes)[1]), "point_mass@tip:mass=0.05");
+  EXPECT_FALSE(load_model_changes(WriteTempFile("problem.yaml", kBarWithTip)));
+  const std::string bad = WriteTempFile("bad.yaml", "changes:\n  - link.kx=150\n  - point_mass@tip:mass\n");
+  try {
+    load_model_changes(bad);
+    ADD_FAILURE() << "expected a ProblemError";
+  } catch (const ProblemError& e) {
+    EXPECT_EQ(e.file(), bad);
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_NE(std::string(e.what()).find("no '=VALUE'"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace modalcal
