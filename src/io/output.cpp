@@ -12,13 +12,18 @@ namespace modalcal {
 
 namespace fs = std::filesystem;
 
-void write_file_atomically(const std::string& path, const std::string& content,
-                           const std::vector<std::string>& inputs) {
+void check_not_input(const std::string& path, const std::vector<std::string>& inputs) {
   std::error_code ec;
   for (const std::string& input : inputs)
     if (fs::exists(path, ec) && fs::equivalent(path, input, ec))
       throw std::invalid_argument("refusing to write '" + path + "': it is an input (" + input +
                                   "); choose another output name");
+}
+
+void write_file_atomically(const std::string& path, const std::string& content,
+                           const std::vector<std::string>& inputs) {
+  check_not_input(path, inputs);
+  std::error_code ec;
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec))
