@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   modalcal::cli::register_calibrate_command(app, &exit_code);
   modalcal::cli::register_check_command(app, &exit_code);
   modalcal::cli::register_study_command(app, &exit_code);
+  modalcal::cli::register_localize_command(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
