@@ -75,7 +75,7 @@ struct LocalizationOptions {
   /// regularization it may not have more columns than there are sensor readings. 0 chooses
   /// automatically: every mode up to `max_frequency_ratio` times the highest measured frequency,
   /// and at least up to the highest paired mode, as long as the condition number at the sensors
-  /// stays at most `max_condition` and there are fewer columns than readings. Range: >= 0.
+  /// stays at most `max_condition` and there are no more columns than readings. Range: >= 0.
   int basis_modes = 0;
   /// Frequency cutoff of the automatic basis, relative to the highest measured frequency with a
   /// shape. Noise in a basis coefficient c_j enters the residual multiplied by
@@ -84,9 +84,10 @@ struct LocalizationOptions {
   /// cases without noise, 7 of 8 with 0.1 % noise on the shapes and 5 of 8 with 0.3 %; the
   /// largest well-conditioned basis (22 modes) in 8, 4 and 3. Range: >= 1.
   double max_frequency_ratio = 1.5;
-  /// Largest \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$ the automatic basis accepts: on the
-  /// portal frame (36 readings) it is 6.2 with 22 modes and jumps to 46 with 24, beyond which the
-  /// indicator is noise even without measurement noise. Range: > 1.
+  /// Largest \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$ the automatic basis accepts. On the
+  /// portal frame (36 readings) it is 6.2 with 22 modes and jumps to 46 with 24; with 24 modes a
+  /// changed beam was ranked behind both columns even without measurement noise, and with 36
+  /// every hidden change gave the same ranking. Range: > 1.
   double max_condition = 10.0;
   /// Most elastic modes the automatic choice computes. Range: >= 1.
   int max_automatic_basis = 40;
@@ -114,7 +115,7 @@ struct ExpandedMode {
   /// \f$\|P\phi - a\phi_s\| / \|a\phi_s\|\f$ before M-normalization: how much of the measured
   /// shape the basis cannot express (0 when it can).
   double sensor_misfit = 0;
-  /// This mode's part of the total energy, \f$\sum_d r_{i,d}^2/(K_{dd}\lambda_{m,i})\f$.
+  /// This mode's part of the total energy, \f$\sum_d r_{i,d}^2/(\lambda_{m,i}^2 M_{dd})\f$.
   double energy = 0;
   Vector shape;               ///< \f$\phi_i\f$ on the free DOFs, \f$\phi^T M \phi = 1\f$
   Vector residual;            ///< \f$r_i = (K - \lambda_{m,i} M)\phi_i\f$ on the free DOFs
@@ -137,7 +138,9 @@ struct Localization {
   /// divided by total_energy.
   Vector element_indicator;
   std::vector<RegionShare> ranking;    ///< every region, largest share first
-  double total_energy = 0;             ///< sum of node_energy; near rounding level: no error found
+  /// Sum of node_energy. Rounding level (5e-16 on the portal frame, whose stiff connections
+  /// make \f$K_{dd}/(\lambda M_{dd})\f$ large) means no error was found and the ranking is noise.
+  double total_energy = 0;
   int basis_size = 0;                  ///< columns of \f$\Phi\f$ (rigid-body modes included)
   /// \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$: large means the sensors barely tell some basis
   /// modes apart and the expansion amplifies noise (regularize or use fewer basis modes).

@@ -60,6 +60,20 @@ void pair_modes(const Problem& problem, const Vector& p, const LocalizationOptio
   }
 }
 
+// Elastic modes of the automatic basis, from `first` on: those up to the cutoff that the
+// sensors tell apart, no more columns than readings. Singular values interlace, so the condition
+// number grows with every mode added and the first one past the limit ends the search.
+int automatic_basis(const Matrix& at_sensors, int rigid, int first, const Vector& eigenvalues, double cutoff_hz,
+                    double max_condition) {
+  const int available = static_cast<int>(eigenvalues.size());
+  const int readings = static_cast<int>(at_sensors.rows());
+  int elastic = first;
+  while (elastic < available && rigid + elastic < readings && frequency_hz(eigenvalues[elastic]) <= cutoff_hz &&
+         detail::condition_number(at_sensors.leftCols(rigid + elastic + 1)) <= max_condition)
+    ++elastic;
+  return elastic;
+}
+
 }  // namespace
 
 Localization localize_model_error(const Problem& problem, const Vector& p, const LocalizationOptions& options) {
@@ -101,17 +115,13 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
   const SparseMatrix sensors = detail::sensor_matrix(problem, system.dof_map());
   int elastic = std::min(options.basis_modes, available);
   if (options.basis_modes == 0) {
-    // The modes up to the cutoff that the sensors tell apart: singular values interlace, so the
-    // condition number grows with every mode added and the first one past the limit ends the search.
     const Matrix at_sensors = sensors * candidates;
     elastic = std::max(highest_paired, 1);
     if (detail::condition_number(at_sensors.leftCols(rigid + elastic)) > options.max_condition)
       result.warnings.push_back("the sensors barely tell the paired model modes apart (condition number of the "
                                 "basis at the sensors above " + std::to_string(options.max_condition) +
                                 "); the expansion may amplify measurement noise");
-    while (elastic < available && rigid + elastic < readings && frequency_hz(modal.eigenvalues[elastic]) <= cutoff_hz &&
-           detail::condition_number(at_sensors.leftCols(rigid + elastic + 1)) <= options.max_condition)
-      ++elastic;
+    elastic = automatic_basis(at_sensors, rigid, elastic, modal.eigenvalues, cutoff_hz, options.max_condition);
   }
   const Matrix basis = candidates.leftCols(rigid + elastic);
   if (basis.cols() > readings && options.regularization == 0)
