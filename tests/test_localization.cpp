@@ -42,16 +42,17 @@ void ChangeArticle(Problem* article, const std::string& property, double factor)
   article->model.properties[id].value *= factor;
 }
 
-// The portal frame whose "measured" modes come from a test article that differs from the model
-// as `change` says; the model itself, at its truth parameters, does not know.
-Problem PortalFrameMeasuredOn(const std::function<void(Problem*)>& change) {
-  Problem problem = PortalFrame();
+// `problem` with "measured" modes from a test article that differs from the model as `change`
+// says; the model itself, at its truth parameters, does not know.
+Problem MeasuredOn(Problem problem, const std::function<void(Problem*)>& change) {
   Problem article = problem;
   change(&article);
   detail::synthesize_measured(&article, *problem.synthetic);
   problem.measured = article.measured;
   return problem;
 }
+
+Problem PortalFrameMeasuredOn(const std::function<void(Problem*)>& change) { return MeasuredOn(PortalFrame(), change); }
 
 double Share(const Localization& result, const std::string& region) {
   for (const RegionShare& r : result.ranking)
@@ -196,6 +197,42 @@ TEST(Localization, MeshViewSpreadsReferenceNodesAndSplitsSharedNodes) {
   const Vector elements = detail::element_energy(model, mesh);
   EXPECT_DOUBLE_EQ(elements[0], 4 * 1.0 + 4 * 0.5);  // shared face split in two
   EXPECT_DOUBLE_EQ(elements[1], 4 * 0.5 + 4 * 3.0);
+}
+
+TEST(Localization, FreeFreeModelsExpandWithTheirRigidBodyModes) {
+  // A free-free bar of two blocks, sensed along two opposite edges.
+  std::string text = R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes:
+    - {block: a, min: [0, 0, 0], max: [3, 0.5, 1]}
+    - {block: b, min: [3, 0, 0], max: [6, 0.5, 1]}
+blocks:
+  a: {E: 1000, nu: 0.3, density: 1.0}
+  b: {E: 1000, nu: 0.3, density: 1.0}
+parameters:
+  E: {targets: [a.E, b.E], initial: 1000, lower: 10, upper: 1e5, truth: 1000}
+measured:
+  synthetic: {modes: [1, 2, 3, 4], shapes: true}
+options:
+  num_modes: 6
+sensors:
+)";
+  for (int x = 0; x <= 6; ++x)
+    for (const char* edge : {"0.5, 1", "0, 0"})
+      text += "  - {at: [" + std::to_string(x) + ", " + edge + "], directions: [x, y, z]}\n";
+  const Problem problem = load_problem(testing::WriteTempFile("free.yaml", text));
+  const Localization right = localize_model_error(problem, problem.truth_values());
+  ASSERT_TRUE(right.ok) << right.message;
+  EXPECT_EQ(right.modal.rigid_modes.cols(), 6);
+  EXPECT_GE(right.basis_size, 6 + 4);
+  EXPECT_LT(right.total_energy, 1e-20);
+  const Localization wrong =
+      localize_model_error(MeasuredOn(problem, [](Problem* a) { ChangeArticle(a, "b.density", 0.8); }),
+                           problem.truth_values());
+  ASSERT_TRUE(wrong.ok) << wrong.message;
+  EXPECT_EQ(wrong.ranking[0].name, "b") << format_ranking(wrong, 2);
 }
 
 TEST(Localization, OptionsAndInputsAreChecked) {

@@ -117,10 +117,14 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
   if (options.basis_modes == 0) {
     const Matrix at_sensors = sensors * candidates;
     elastic = std::max(highest_paired, 1);
-    if (detail::condition_number(at_sensors.leftCols(rigid + elastic)) > options.max_condition)
-      result.warnings.push_back("the sensors barely tell the paired model modes apart (condition number of the "
-                                "basis at the sensors above " + std::to_string(options.max_condition) +
-                                "); the expansion may amplify measurement noise");
+    const double condition = detail::condition_number(at_sensors.leftCols(rigid + elastic));
+    if (condition > options.max_condition) {
+      std::ostringstream warning;
+      warning << "the sensors barely tell the paired model modes apart (condition number " << condition
+              << " of the basis at the sensors, above " << options.max_condition
+              << "); the expansion may amplify measurement noise: add sensors where these modes differ";
+      result.warnings.push_back(warning.str());
+    }
     elastic = automatic_basis(at_sensors, rigid, elastic, modal.eigenvalues, cutoff_hz, options.max_condition);
   }
   const Matrix basis = candidates.leftCols(rigid + elastic);
