@@ -28,7 +28,7 @@ std::string escape_xml(const std::string& text) {
   return out;
 }
 
-// Shortest text that reads back as the same double (max_digits10), so that a reader recovers
+// max_digits10 (17) significant digits read back as the same double, so that a reader recovers
 // the mode shapes exactly.
 void write_values(std::ostringstream& out, const std::vector<double>& values, bool integer) {
   out.precision(std::numeric_limits<double>::max_digits10);
