@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages the project builds with, only those missing (idempotent).
 # Why each: Ipopt+MUMPS (full-space NLP), Eigen (dense/sparse containers), SuiteSparse (CHOLMOD
 # supernodal Cholesky), OpenBLAS (CHOLMOD is 7-10x slower on reference BLAS), Spectra (Lanczos),
-# GoogleTest, yaml-cpp (problem files with line numbers), CLI11, nlohmann-json, gnuplot (plots).
+# GoogleTest, yaml-cpp (problem files with line numbers), CLI11, nlohmann-json, gnuplot (plots),
+# VTK's Python module (the test that reads the VTU files back with an independent reader).
 # With MODALCAL_WITH_ROL=1 also Trilinos ROL (header-only) and the Teuchos/Kokkos libraries it
 # links, for the seed-optimizer baseline (cmake -DMODALCAL_WITH_ROL=ON); the default build does
 # not need them.
@@ -10,7 +11,7 @@ set -euo pipefail
 packages=(
   g++ cmake make pkg-config
   coinor-libipopt-dev libeigen3-dev libsuitesparse-dev libopenblas-dev libspectra-dev
-  libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox
+  libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox python3-vtk9
 )
 if [ "${MODALCAL_WITH_ROL:-0}" = 1 ]; then
   packages+=(libtrilinos-rol-dev libtrilinos-teuchos-dev libtrilinos-kokkos-dev)

@@ -125,6 +125,50 @@ TEST(Cli, NeverOverwritesTheProblemFile) {
   EXPECT_EQ(ReadFile(problem), kBar);
 }
 
+TEST(Cli, ModesWritesVtuFilesButNeverOverAnInput) {
+  const std::string problem = WriteTempFile("bar.yaml", kBar);
+  const std::filesystem::path dir = std::filesystem::path(problem).parent_path() / "vtu";
+  CliRun run = RunCli("modes " + problem + " --vtu " + dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(ReadFile((dir / "modes.vtu").string()).find("Name=\"mode_6_"), std::string::npos);
+  EXPECT_NE(ReadFile((dir / "modes.pvd").string()).find("file=\"modes.vtu\""), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir / "modes_sensors.vtu")) << "the bar has no sensors";
+  // A problem file named like an output in the output directory stays as it is.
+  const std::string input = (dir / "modes.pvd").string();
+  std::ofstream(input) << kBar;
+  run = RunCli("modes " + input + " --vtu " + dir.string());
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("refusing"), std::string::npos) << run.output;
+  EXPECT_EQ(ReadFile(input), kBar);
+}
+
+TEST(Cli, LocalizeRanksTheRegionTheModelGetsWrong) {
+  // The model's column 1 is 30 % heavier than the test article the measurements came from.
+  const std::string json_path = WriteTempFile("localize.json", "");
+  const std::filesystem::path dir = std::filesystem::path(json_path).parent_path() / "vtu";
+  const CliRun run = RunCli("localize " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
+                            " --params truth --set column_1.density=3510 --rows 3 --json " + json_path + " --vtu " +
+                            dir.string());
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("   1  column_1 "), std::string::npos) << run.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
+  EXPECT_EQ(j["ranking"][0]["region"], "column_1");
+  EXPECT_EQ(j["ranking"][0]["kind"], "block");
+  EXPECT_GT(j["ranking"][0]["share"].get<double>(), 0.5);
+  ASSERT_EQ(j["modes"].size(), 6u);
+  EXPECT_EQ(j["modes"][0]["measured"], 1);
+  EXPECT_GT(j["total_energy"].get<double>(), 0.0);
+  for (const char* file : {"localize.vtu", "localize_sensors.vtu", "localize.pvd"})
+    EXPECT_TRUE(std::filesystem::exists(dir / file)) << file;
+  EXPECT_NE(ReadFile((dir / "localize.vtu").string()).find("Name=\"error_indicator\""), std::string::npos);
+}
+
+TEST(Cli, LocalizeWithoutMeasuredShapesIsAnInputError) {
+  const CliRun run = RunCli("localize " + WriteTempFile("bar.yaml", kBar));
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("no measured mode has a shape"), std::string::npos) << run.output;
+}
+
 TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   const std::string json_path = WriteTempFile("report.json", "");
   const CliRun run =

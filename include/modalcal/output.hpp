@@ -9,6 +9,10 @@
 
 namespace modalcal {
 
+/// \throws std::invalid_argument if `path` exists and is one of `inputs` (the same file on disk).
+/// For writers of several files, which check every target before writing the first.
+void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
+
 /// Writes `content` to `path` atomically (temporary file + rename in the same directory).
 /// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk), or
 ///         std::runtime_error naming the path if it cannot be written.

@@ -17,9 +17,9 @@ int main(int argc, char** argv) {
   modalcal::cli::register_check_command(app, &exit_code);
   modalcal::cli::register_study_command(app, &exit_code);
   modalcal::cli::register_import_test_data_command(app, &exit_code);
-
   modalcal::cli::register_synth_command(app, &exit_code);
   modalcal::cli::register_compare_command(app, &exit_code);
+  modalcal::cli::register_localize_command(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,5 +1,5 @@
 // `fullspace_calib modes PROBLEM`: the forward modal solve at chosen parameter values, as a
-// table and as JSON.
+// table, as JSON and as VTU files for ParaView.
 
 #include <CLI/CLI.hpp>
 
@@ -11,6 +11,7 @@
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
 #include "modalcal/mode_description.hpp"
+#include "modalcal/vtu.hpp"
 
 namespace modalcal::cli {
 
@@ -19,7 +20,7 @@ namespace {
 struct ModesArgs {
   std::string problem;
   ParameterChoice params;
-  std::string json;
+  std::string json, vtu;
   double refine = 0;
   int num_modes = 0;
 };
@@ -91,6 +92,12 @@ int run_modes(const ModesArgs& args) {
                    {"operator_solves", result.operator_solves},
                    {"shift", result.shift}};
   write_json(args.json, json, problem);
+  if (!args.vtu.empty()) {
+    VtuFields fields;
+    add_mode_fields(result, -1, &fields);
+    for (const std::string& path : write_vtu_set(args.vtu, "modes", problem, system, p, fields))
+      std::printf("wrote %s\n", path.c_str());
+  }
   return 0;
 }
 
@@ -103,6 +110,7 @@ void register_modes_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--params", args->params.source, "parameter values: initial, truth, or a calibration report JSON");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
   cmd->add_option("--json", args->json, "write the results as JSON to this file");
+  cmd->add_option("--vtu", args->vtu, "write modes.vtu (mesh, blocks, properties, mode shapes), modes_sensors.vtu and modes.pvd to this directory");
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
   cmd->add_option("--num-modes", args->num_modes, "number of elastic modes (overrides the problem file)")->check(CLI::PositiveNumber);
   cmd->callback([args, exit_code] { *exit_code = run_modes(*args); });
