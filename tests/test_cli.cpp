@@ -225,20 +225,7 @@ TEST(Cli, ImportTestDataNamesTheBadLineAndKeepsInputs) {
 
 // The bar with sensors on its top edge and Young's modulus to calibrate (its truth unknown: the
 // truth model keeps the file's value).
-const char* kSensedBar = R"(
-mesh:
-  element: hex8
-  element_size: 0.5
-  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
-blocks:
-  bar: {E: 1000, nu: 0.3, density: 1.0}
-node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
-  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
-  top_edge: {box: {min: [0, 0.5, 0.75], max: [4, 0.5, 0.75]}}
-fixed:
-  - {node_set: root, dofs: [x, y, z]}
-parameters:
+const std::string kSensedBar = testing::CantileverBar() + R"(parameters:
   E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, scaling: log}
 sensors:
   - {node_set: top_edge, directions: [x, y, z]}
@@ -261,7 +248,7 @@ TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   EXPECT_EQ(ReadFile(dir + "/data.yaml"), ReadFile(dir + "/again.yaml"));  // same seed, same file
 
   // The nominal problem pointed at the data (it takes its sensors from them).
-  const std::string study = WriteTempFile("study.yaml", std::string(kSensedBar) + "measured: {file: data.yaml}\n");
+  const std::string study = WriteTempFile("study.yaml", kSensedBar + "measured: {file: data.yaml}\n");
   const std::string json_path = dir + "/compare.json";
   run = RunCli("compare " + study + " --set E=1100 --json " + json_path + " --mac-plot " + dir + "/mac.png --error-plot " +
                dir + "/errors.svg");

@@ -12,20 +12,7 @@ namespace {
 
 // A cantilevered bar with triaxial sensors on its top edge (9 nodes, the first at the clamped
 // root) and six modes synthesized at E = 1200.
-const char* const kBar = R"(
-mesh:
-  element: hex8
-  element_size: 0.5
-  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
-blocks:
-  bar: {E: 1000, nu: 0.3, density: 1.0}
-node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
-  top_edge: {box: {min: [0, 0.5, 0.75], max: [4, 0.5, 0.75]}}
-  corner: {box: {min: [4, 0.5, 0.75], max: [4, 0.5, 0.75]}}
-fixed:
-  - {node_set: root, dofs: [x, y, z]}
-parameters:
+const std::string kBar = testing::CantileverBar("  corner: {box: {min: [4, 0.5, 0.75], max: [4, 0.5, 0.75]}}\n") + R"(parameters:
   E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, truth: 1200}
 measured:
   synthetic: {modes: [1, 2, 3, 4, 5, 6]}
@@ -33,7 +20,7 @@ options: {num_modes: 8}
 )";
 
 Problem Load(const std::string& sensors = "sensors:\n  - {node_set: top_edge, directions: [x, y, z]}\n") {
-  return load_problem(testing::WriteTempFile("bar.yaml", std::string(kBar) + sensors));
+  return load_problem(testing::WriteTempFile("bar.yaml", kBar + sensors));
 }
 
 TEST(Comparison, ModelAgainstItsOwnModesIsPerfect) {

@@ -18,17 +18,8 @@ using testing::WriteTempFile;
 // A cantilevered bar of one block (9 x 2 x 3 = 54 mesh nodes) with a node set at the tip, coupled
 // to reference node hub (55), joined in translation to reference node arm (56) that carries a
 // point mass and has its rotations fixed.
-const char* const kBarWithTip = R"(
-mesh:
-  element: hex8
-  element_size: 0.5
-  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
-blocks:
-  bar: {E: 1000, nu: 0.3, density: 1.0}
-node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
-  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
-  arm_node: {nodes: [56]}
+const std::string kBarWithTip = testing::CantileverBar("  arm_node: {nodes: [56]}\n",
+                                                      "  - {node_set: arm_node, dofs: [rx, ry, rz]}\n") + R"(
 reference_nodes:
   hub: [4.5, 0.25, 0.375]
   arm: [4.5, 0.25, 0.375]
@@ -38,9 +29,6 @@ joints:
   link: {nodes: [hub, arm], kx: 100, ky: 100, kz: 100}
 point_masses:
   weight: {node: arm, mass: 0.1}
-fixed:
-  - {node_set: root, dofs: [x, y, z]}
-  - {node_set: arm_node, dofs: [rx, ry, rz]}
 )";
 
 Model LoadBar() { return load_problem(WriteTempFile("bar.yaml", kBarWithTip)).model; }
@@ -220,7 +208,7 @@ TEST(ModelChange, ErrorsNameTheItemAndLikelyCause) {
   ExpectChangeError("bar.nu=0.5", {"Poisson's ratio", "(-1, 0.5)"});
   ExpectChangeError("link.kx=-1", {"must not be negative"});
   ExpectChangeError("bar.stiffness_scale=0", {"must be positive"});
-  ExpectChangeError("point_mass@nowhere:mass=1", {"unknown node set 'nowhere'", "known node sets: root, tip, arm_node"});
+  ExpectChangeError("point_mass@nowhere:mass=1", {"unknown node set 'nowhere'", "known node sets: root, tip, top_edge, arm_node"});
   ExpectChangeError("point_mass@#99999:mass=1", {"no node with id 99999", "node ids run from 1 to"});
   ExpectChangeError("spring@root:krx=1", {"krx acts on rotations", "has none"});
   ExpectChangeError("point_mass@tip:foo=1", {"no property 'foo'", "mass, Ixx, Iyy, Izz"});

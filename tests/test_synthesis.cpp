@@ -22,20 +22,7 @@ using testing::WriteTempFile;
 
 // A cantilevered bar (non-square section, so no repeated eigenvalues) with triaxial sensors on
 // its top edge (9 nodes, the first at the clamped root) and Young's modulus to calibrate.
-const char* const kBase = R"(
-mesh:
-  element: hex8
-  element_size: 0.5
-  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
-blocks:
-  bar: {E: 1000, nu: 0.3, density: 1.0}
-node_sets:
-  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
-  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
-  top_edge: {box: {min: [0, 0.5, 0.75], max: [4, 0.5, 0.75]}}
-fixed:
-  - {node_set: root, dofs: [x, y, z]}
-options: {num_modes: 8}
+const std::string kBase = testing::CantileverBar() + R"(options: {num_modes: 8}
 )";
 
 const char* const kSensors = R"(
@@ -44,7 +31,7 @@ sensors:
 )";
 
 std::string Nominal(const std::string& truth = "truth: 1200, ") {
-  return std::string(kBase) + kSensors + "parameters:\n  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, " +
+  return kBase + kSensors + "parameters:\n  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, " +
          truth + "scaling: log}\n";
 }
 
@@ -230,7 +217,7 @@ TEST(MeasuredDataFile, RoundTripsIntoTheNominalProblem) {
 
   // Without its own sensors, a problem takes the data's (same nodes, same order).
   const Problem adopted = load_problem(WriteTempFile(
-      "adopt.yaml", std::string(kBase) + "measured: {file: data.yaml}\n"));
+      "adopt.yaml", kBase + "measured: {file: data.yaml}\n"));
   ASSERT_EQ(adopted.sensors.size(), nominal.sensors.size());
   for (size_t s = 0; s < nominal.sensors.size(); ++s) {
     EXPECT_EQ(adopted.sensors[s].node, nominal.sensors[s].node);
@@ -296,7 +283,7 @@ TEST(MeasuredDataFile, ErrorsNameTheDataFileAndLine) {
   ExpectLoadError(study, data, LineOf(data, "sensors:"), {"lists 26 sensor DOFs but the problem's 'sensors' measure 27"});
 
   // A sensor position with no node, in a problem that takes the data's sensors.
-  const std::string adopt = WriteStudy(std::string(kBase) + "measured: {file: data.yaml}\n", {});
+  const std::string adopt = WriteStudy(kBase + "measured: {file: data.yaml}\n", {});
   Edit(data, "at: [0, 0.5, 0.75]", "at: [0, 0.6, 0.75]");
   ExpectLoadError(adopt, data, LineOf(data, "at: [0, 0.6, 0.75]"), {"no node within"});
 

@@ -118,4 +118,21 @@ Model MakeChain(int n, double m, double k, bool grounded) {
   return model;
 }
 
+std::string CantileverBar(const std::string& extra_node_sets, const std::string& extra_fixed) {
+  return R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes: [{block: bar, min: [0, 0, 0], max: [4, 0.5, 0.75]}]
+blocks:
+  bar: {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 0.5, 0.75]}}
+  tip: {box: {min: [4, 0, 0], max: [4, 0.5, 0.75]}}
+  top_edge: {box: {min: [0, 0.5, 0.75], max: [4, 0.5, 0.75]}}
+)" + extra_node_sets + R"(fixed:
+  - {node_set: root, dofs: [x, y, z]}
+)" + extra_fixed;
+}
+
 }  // namespace modalcal::testing

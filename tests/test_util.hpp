@@ -25,6 +25,13 @@ double RelativeDifference(const Matrix& a, const Matrix& b);
 /// identifiable (E and the stiffness scale of the same block act alike): for derivative checks.
 extern const char* const kEveryParameterKindModel;
 
+/// Problem-file text of a hex8 cantilevered bar 4 x 0.5 x 0.75 (block `bar`: E 1000, nu 0.3,
+/// density 1; element size 0.5, so 9 x 2 x 3 nodes and a non-square section without repeated
+/// eigenvalues), clamped at x = 0 (node set `root`), with node sets `tip` (x = 4) and `top_edge`
+/// (y = 0.5, z = 0.75; 9 nodes, the first at the root). `extra_node_sets` and `extra_fixed` are
+/// appended to those sections (YAML lines indented by two); tests add the other sections.
+std::string CantileverBar(const std::string& extra_node_sets = "", const std::string& extra_fixed = "");
+
 /// Path of a file in the source tree.
 std::string SourcePath(const std::string& relative);
 
