@@ -277,11 +277,17 @@ TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   EXPECT_TRUE(std::filesystem::file_size(dir + "/mac.png") > 0);
   EXPECT_NE(ReadFile(dir + "/errors.svg").find("<svg"), std::string::npos);
 
-  run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --json " + dir + "/calibrate.json");
+  run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --json " + dir + "/calibrate.json --vtu " + dir +
+               "/vtu");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("hidden effect: added_mass_tip.mass"), std::string::npos) << run.output;
   const nlohmann::json calibrated = nlohmann::json::parse(ReadFile(dir + "/calibrate.json"));
   EXPECT_EQ(calibrated["hidden_effect"][1]["name"], "added_mass_tip.mass");
+  // The calibrated model for ParaView: the final E on every cell, the measured shapes at the sensors.
+  const std::string grid = ReadFile(dir + "/vtu/calibrated.vtu");
+  EXPECT_NE(grid.find("Name=\"parameter_E\""), std::string::npos);
+  EXPECT_NE(grid.find("Name=\"mode_1_"), std::string::npos);
+  EXPECT_NE(ReadFile(dir + "/vtu/calibrated_sensors.vtu").find("Name=\"measured_1_"), std::string::npos);
 
   // --sensors measures every node of a node set in x, y and z (the tip: 2 x 3 nodes).
   ASSERT_EQ(RunCli("synth " + nominal + " --modes 1,2 --sensors tip -o " + dir + "/tip.yaml").exit_code, 0);

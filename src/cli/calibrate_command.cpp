@@ -12,6 +12,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/vtu.hpp"
 
 namespace modalcal::cli {
 
@@ -23,6 +24,7 @@ struct CalibrateArgs {
   std::string scaling;
   bool no_bounds = false;
   std::string json;
+  std::string vtu;
   double refine = 0;
   int max_iterations = 100;
   double start_factor = 1;
@@ -69,6 +71,7 @@ int run_calibrate(const CalibrateArgs& args) {
               objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
   CalibrationReport report;
   bool usable = false;
+  Vector final_p;
   if (args.method == "fullspace") {
     if (args.no_bounds) throw InputError("--no-bounds: the full-space method always uses the parameters' bounds");
     FullSpaceOptions options;
@@ -86,6 +89,7 @@ int run_calibrate(const CalibrateArgs& args) {
     report = make_report(objective, summary.initial, summary.final);
     report.summary = summary_json(problem, summary);
     usable = summary.converged();
+    final_p = summary.final;
   } else {
     ReducedOptions options;
     options.method = parse_method(args.method);
@@ -100,6 +104,7 @@ int run_calibrate(const CalibrateArgs& args) {
     // L-BFGS often ends on its line search at the rounding floor with a perfect fit: any end
     // with a final iterate is a result; the status in the report says how it ended.
     usable = summary.termination != TerminationType::ForwardSolveFailed && summary.final.size() > 0;
+    final_p = summary.final;
   }
   report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},
                      {"bounds", !args.no_bounds},
@@ -107,6 +112,16 @@ int run_calibrate(const CalibrateArgs& args) {
                      {"regularization", args.regularization}};
   std::fputs(report.text.c_str(), stdout);
   write_json(args.json, report.json(), problem);
+  if (!args.vtu.empty() && usable) {
+    // The calibrated model for ParaView: blocks with their calibrated properties, the computed
+    // modes at the final parameters, and the measured shapes at the sensors.
+    const Evaluation at_final = objective.evaluate(final_p, Need::Value);
+    if (!at_final.ok) throw std::runtime_error("--vtu: forward solve at the final parameters failed: " + at_final.message);
+    VtuFields fields;
+    add_mode_fields(at_final.modal, -1, &fields);
+    for (const std::string& path : write_vtu_set(args.vtu, "calibrated", problem, objective.system(), final_p, fields))
+      std::printf("wrote %s\n", path.c_str());
+  }
   return usable ? 0 : 1;
 }
 
@@ -122,6 +137,9 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"none", "linear", "log"}));
   cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
   cmd->add_option("--json", args->json, "write the report as JSON to this file");
+  cmd->add_option("--vtu", args->vtu,
+                  "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
+                  "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
