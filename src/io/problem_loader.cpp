@@ -1229,8 +1229,8 @@ int Loader::node_by_id(const Field& f) const {
   const auto it = node_of_id_.find(id);
   if (it != node_of_id_.end()) return it->second;
   const auto [lo, hi] = std::minmax_element(model_.node_ids.begin(), model_.node_ids.begin() + num_mesh_nodes_);
-  std::string ids = "mesh node ids run from " + std::to_string(*lo) + " to " + std::to_string(*hi);
-  if (*hi - *lo + 1 != num_mesh_nodes_) ids += " (not all are used)";
+  std::string ids = "mesh nodes are " + std::to_string(*lo) + ".." + std::to_string(*hi);
+  if (*hi - *lo + 1 != num_mesh_nodes_) ids += " (with gaps)";
   if (model_.num_nodes() > num_mesh_nodes_)
     ids += ", reference nodes are " + std::to_string(model_.node_ids[num_mesh_nodes_]) + ".." +
            std::to_string(model_.node_ids.back());
