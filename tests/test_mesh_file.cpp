@@ -564,6 +564,16 @@ TEST(MeshFileErrors, ExodusFilesThatAreNotUsableMeshes) {
   WriteExodus(flat_path, flat);
   ExpectMeshError(flat_path, {"element 1 of block 'solid'", "degenerate (zero volume)"});
 
+  // A tet10 whose mid-node of edge 0-1 sits at 0.8 of the edge: the edge folds back at corner 1
+  // (dx/dxi = 3 - 4 * 0.8 < 0 there) although det J is positive at every quadrature point.
+  ExodusMesh folded;
+  folded.coordinates = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.8, 0, 0}, {0.5, 0.5, 0},
+                        {0, 0.5, 0}, {0, 0, 0.5}, {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+  folded.blocks = {{"curved", 1, "TETRA10", 10, {1, 2, 3, 4, 5, 6, 7, 8, 9, 10}}};
+  const std::string folded_path = WriteTempFile("folded.exo", "");
+  WriteExodus(folded_path, folded);
+  ExpectMeshError(folded_path, {"element 1 of block 'curved' (tet10", "is inverted", "curved element folds over"});
+
   ExodusMesh wedge = tet;
   wedge.coordinates.push_back({1, 0, 1});
   wedge.coordinates.push_back({0, 1, 1});

@@ -44,9 +44,10 @@ struct SolidElementMatrices {
 SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3Xd& coords);
 
 /// Smallest Jacobian determinant \f$\det J = \det(\partial x / \partial \xi)\f$ over the
-/// quadrature points solid_element_matrices() evaluates: the element can be assembled exactly
-/// when this is positive. Negative: inverted (nodes in the wrong order, or a curved tet10 folded
-/// over); zero: degenerate (no volume). For a straight-sided tet it is 6 × volume.
+/// element's corners and the quadrature points solid_element_matrices() evaluates. Positive:
+/// the element maps one-to-one and can be assembled. Negative: inverted (nodes in the wrong
+/// order, or a curved tet10 folded over); zero: degenerate (no volume). For a straight-sided
+/// tet it is 6 × volume, for a parallelepiped hex volume / 8.
 /// `coords` as for solid_element_matrices().
 /// \throws std::invalid_argument if the column count does not match `type`.
 /// \code

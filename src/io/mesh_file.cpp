@@ -52,7 +52,8 @@ void check_orientation(const std::string& path, const RawMesh& mesh) {
       mesh_error(path, "element " + std::to_string(block.element_ids[e]) + " of block " + quote(block.name) + " (" +
                            solid_type_name(block.type) + ", nodes " + nodes.str() + ") is " +
                            (det < -zero ? "inverted (Jacobian determinant " + value.str() +
-                                          "): its nodes are not in the expected order, or a curved element folds over"
+                                          "): its nodes are not in the expected order, or a curved element folds over (with Gmsh: "
+                                          "Mesh.HighOrderOptimize = 2, Mesh.SecondOrderLinear = 1 or a finer mesh at curved faces)"
                                     : "degenerate (zero volume)"));
     }
   }

@@ -206,10 +206,16 @@ constexpr int kTetSides[4][3] = {{0, 1, 3}, {1, 2, 3}, {0, 3, 2}, {0, 2, 1}};
 
 double min_jacobian_determinant(SolidType type, const Eigen::Matrix3Xd& coords) {
   check_node_count(type, coords);
+  // The corners catch a curved tet10 folded at a vertex, which the quadrature points can miss.
+  QuadratureRule corners;
+  if (type == SolidType::Hex8)
+    for (const auto& c : kHexCorners) corners.push_back({Vec3(c[0], c[1], c[2]), 0.0});
+  else
+    for (const Vec3& xi : {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)}) corners.push_back({xi, 0.0});
   double smallest = std::numeric_limits<double>::infinity();
   ShapeValues N;
   ShapeGradients dNdxi;
-  for (const QuadratureRule* rule : {&stiffness_quadrature(type), &mass_quadrature(type)})
+  for (const QuadratureRule* rule : {static_cast<const QuadratureRule*>(&corners), &stiffness_quadrature(type), &mass_quadrature(type)})
     for (const QuadraturePoint& q : *rule) {
       shape_functions(type, q.xi, N, dNdxi);
       smallest = std::min(smallest, (coords * dNdxi).determinant());
