@@ -589,6 +589,12 @@ TEST(MeshFileErrors, ExodusFilesThatAreNotUsableMeshes) {
   WriteExodus(bad_side_path, bad_side);
   ExpectMeshError(bad_side_path, {"side set 'face' (id 3)", "side 5 of element 1", "tet4 has sides 1..4"});
 
+  ExodusMesh repeated = tet;
+  repeated.node_ids = {7, 8, 7, 9};
+  const std::string repeated_path = WriteTempFile("repeated_ids.exo", "");
+  WriteExodus(repeated_path, repeated);
+  ExpectMeshError(repeated_path, {"node id 7 is given to nodes 1 and 3"});
+
   ExodusMesh plane;
   plane.dim = 2;
   plane.coordinates = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};

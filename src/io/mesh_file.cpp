@@ -59,7 +59,13 @@ void check_orientation(const std::string& path, const RawMesh& mesh) {
   }
 }
 
-void check_unique_names(const std::string& path, const RawMesh& mesh) {
+void check_unique_ids_and_names(const std::string& path, const RawMesh& mesh) {
+  std::map<long, size_t> first_of_id;
+  for (size_t v = 0; v < mesh.node_ids.size(); ++v)
+    if (!first_of_id.emplace(mesh.node_ids[v], v).second)
+      mesh_error(path, "node id " + std::to_string(mesh.node_ids[v]) + " is given to nodes " +
+                           std::to_string(first_of_id[mesh.node_ids[v]] + 1) + " and " + std::to_string(v + 1) +
+                           "; node ids must be unique");
   std::map<std::string, const MeshFileBlock*> blocks;
   for (const MeshFileBlock& b : mesh.blocks)
     if (!blocks.emplace(b.name, &b).second)
@@ -146,7 +152,7 @@ MeshFile read_mesh_file(const std::string& path, std::optional<MeshFileFormat> f
   detail::require_regular_file(path);
   RawMesh raw = *format == MeshFileFormat::Gmsh ? detail::read_gmsh(path) : detail::read_exodus(path);
   if (raw.blocks.empty()) mesh_error(path, "has no solid elements");
-  check_unique_names(path, raw);
+  check_unique_ids_and_names(path, raw);
   check_orientation(path, raw);
   return compact(path, *format, std::move(raw));
 }

@@ -548,8 +548,7 @@ void Loader::read_mesh_file(const Fields& fs) {
     block.connectivity = from->connectivity;
   }
   for (const MeshFileBlock& b : mesh.blocks)
-    if (!model_.blocks.empty() && std::none_of(model_.blocks.begin(), model_.blocks.end(),
-                                                [&](const ElementBlock& m) { return m.name == b.name; }))
+    if (std::none_of(model_.blocks.begin(), model_.blocks.end(), [&](const ElementBlock& m) { return m.name == b.name; }))
       fail(file, "mesh file " + quote(path) + " has block " + quote(b.name) + " (id " + std::to_string(b.id) + ", " +
                      std::to_string(b.num_elements()) + " " + solid_type_name(b.type) +
                      " elements), which 'blocks' gives no material; add " + b.name + ": {E: ..., nu: ..., density: ...}");
