@@ -83,6 +83,9 @@ struct MeshFile {
 };
 
 /// Reads a Gmsh or Exodus II mesh; `format` defaults to mesh_format_from_extension(path).
+/// For a Gmsh file the Gmsh API is initialized and finalized around the read (its state is
+/// global; concurrent reads wait for each other), so do not call it while the program holds a
+/// Gmsh session of its own.
 /// \throws ProblemError (problem.hpp) with the mesh file's path and what is wrong: no such
 ///         file, unknown extension without `format`, not a mesh of that format, the reading
 ///         library's own error (truncated or malformed file), a 2-D mesh, an unsupported element
