@@ -1,5 +1,6 @@
-// The bundled calibration problems beyond the LFU (problems/portal-frame, with mode shapes, and
-// problems/propped-cantilever, eigenvalues only): each loads as its README describes it, its
+// The bundled calibration problems beyond the LFU (problems/portal-frame, with mode shapes,
+// problems/propped-cantilever, eigenvalues only, and problems/bracket, a Gmsh mesh of a real
+// part): each loads as its README describes it, its
 // bounds contain the multi-start range truth x 10^-1.5 ... truth x 10^0.5, its measured modes are
 // well separated, and reduced L-BFGS from the file's initial point recovers every parameter to
 // 1e-4 relative. The full-space study runs on these problems, so they must stay well posed.
@@ -19,10 +20,10 @@ namespace {
 
 using testing::SourcePath;
 
-// Checks shared by both problems: truth values known, log scaling, initial values off the truth,
+// Checks shared by the problems: truth values known, log scaling, initial values off the truth,
 // bounds wide enough for the random starts p_true * 10^U(-1.5, 0.5), a model small enough for
 // many-start studies, and measured frequencies more than 2 % apart.
-void ExpectStudyReady(const Problem& problem) {
+void ExpectStudyReady(const Problem& problem, int max_dofs = 4000) {
   ASSERT_TRUE(problem.has_truth());
   for (const Parameter& p : problem.parameters) {
     EXPECT_EQ(p.scaling, Scaling::Log) << p.name;
@@ -32,7 +33,7 @@ void ExpectStudyReady(const Problem& problem) {
   }
   Objective objective(problem);
   EXPECT_GE(objective.system().num_dofs(), 1000);
-  EXPECT_LE(objective.system().num_dofs(), 4000);
+  EXPECT_LE(objective.system().num_dofs(), max_dofs);
   std::vector<double> f;
   for (const MeasuredMode& m : problem.measured) f.push_back(m.frequency_hz);
   std::sort(f.begin(), f.end());
@@ -93,6 +94,34 @@ TEST(BundledProblems, ProppedCantileverIsAnEigenvalueOnlyStudy) {
 
 TEST(BundledProblems, ProppedCantileverLbfgsRecoversTruthFromInitialPoint) {
   ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/propped-cantilever/synthetic.yaml")));
+}
+
+// A mesh not made by the built-in generator: the committed Gmsh file loads with its physical
+// groups, the bolts' springs sit on the hole walls' node sets, and the study is well posed.
+TEST(BundledProblems, BracketIsAGmshMeshedShapeStudy) {
+  const Problem problem = load_problem(SourcePath("problems/bracket/synthetic.yaml"));
+  ASSERT_EQ(problem.model.blocks.size(), 1u);
+  EXPECT_EQ(problem.model.blocks[0].type, SolidType::Tet10);
+  for (const char* set : {"bolt_hole_1", "bolt_hole_2", "tip_hole", "base_bottom"})
+    EXPECT_NE(problem.model.find_node_set(set), nullptr) << set;
+  ASSERT_EQ(problem.model.ground_springs.size(), 2u);
+  EXPECT_EQ(problem.model.ground_springs[0].nodes, problem.model.find_node_set("bolt_hole_1")->nodes);
+  // Every hole-wall node is on the bolt's cylinder (radius 3.3 mm about x = 55 mm, y = 15 mm).
+  for (int v : problem.model.ground_springs[0].nodes) {
+    const Vec3& x = problem.model.coordinates[v];
+    EXPECT_NEAR(std::hypot(x.x() - 0.055, x.y() - 0.015), 0.0033, 1e-9);
+  }
+  ASSERT_EQ(problem.parameters.size(), 2u);
+  EXPECT_EQ(problem.parameters[1].targets.size(), 6u);  // kx, ky, kz of both bolts
+  EXPECT_EQ(problem.sensors.size(), 18u);
+  ASSERT_EQ(problem.measured.size(), 5u);
+  for (const MeasuredMode& m : problem.measured) EXPECT_EQ(m.shape.size(), 18);
+  EXPECT_EQ(problem.expected_rigid_modes(), 0);
+  ExpectStudyReady(problem, 5000);
+}
+
+TEST(BundledProblems, BracketLbfgsRecoversTruthFromInitialPoint) {
+  ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/bracket/synthetic.yaml")));
 }
 
 // The model-form study: its data file holds the synth run named in the problem file, with its

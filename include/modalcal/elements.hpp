@@ -13,6 +13,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 #include "modalcal/types.hpp"
 
@@ -41,6 +42,28 @@ struct SolidElementMatrices {
 /// \throws std::invalid_argument if the Jacobian determinant is not positive at a quadrature
 ///         point (inverted or degenerate element) or the column count does not match `type`.
 SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3Xd& coords);
+
+/// Smallest Jacobian determinant \f$\det J = \det(\partial x / \partial \xi)\f$ over the
+/// element's corners and the quadrature points solid_element_matrices() evaluates. Positive:
+/// the element maps one-to-one and can be assembled. Negative: inverted (nodes in the wrong
+/// order, or a curved tet10 folded over); zero: degenerate (no volume). For a straight-sided
+/// tet it is 6 × volume, for a parallelepiped hex volume / 8.
+/// `coords` as for solid_element_matrices().
+/// \throws std::invalid_argument if the column count does not match `type`.
+/// \code
+/// if (modalcal::min_jacobian_determinant(SolidType::Tet4, x) <= 0) { /* reject the element */ }
+/// \endcode
+double min_jacobian_determinant(SolidType type, const Eigen::Matrix3Xd& coords);
+
+/// Number of sides (faces) of a solid element: 6 for hex8, 4 for tets.
+int num_solid_sides(SolidType type);
+
+/// Local node indices (0-based) on side `side` of an element, in Exodus side numbering
+/// (1-based): hex8 sides 1–6 are the faces 0-1-5-4, 1-2-6-5, 2-3-7-6, 0-4-7-3, 0-3-2-1, 4-5-6-7;
+/// tet sides 1–4 are 0-1-3, 1-2-3, 0-3-2, 0-2-1, and a tet10 side adds the mid-edge nodes of its
+/// three edges. Corners come first, ordered counter-clockwise seen from outside the element.
+/// \throws std::invalid_argument if `side` is not in 1..num_solid_sides(type).
+std::vector<int> solid_side_nodes(SolidType type, int side);
 
 /// Stiffness matrix per unit stiffness of one component of a two-node joint spring
 /// (Sierra-SD Joint2G), DOFs ordered (u, θ) of node a then (u, θ) of node b (12 x 12).

@@ -141,7 +141,7 @@ struct Problem {
 
 /// Settings that override a problem file at load time.
 struct LoadOptions {
-  double refinement = 0;       ///< > 0 overrides the mesh's refinement factor
+  double refinement = 0;       ///< > 0 overrides a generated mesh's refinement factor (an error with a mesh file)
 };
 
 /// Reads and validates a problem file.

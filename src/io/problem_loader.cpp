@@ -13,6 +13,7 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <unordered_map>
 #include <sstream>
 
 #include <Eigen/Geometry>
@@ -21,6 +22,7 @@
 #include "io/box_mesh.hpp"
 #include "io/measured_test_data.hpp"
 #include "io/synthetic.hpp"
+#include "modalcal/mesh_file.hpp"
 
 namespace modalcal {
 
@@ -162,6 +164,10 @@ class Loader {
 
   void read_blocks(const Field& f);
   void read_mesh(const Field& f);
+  void read_box_mesh(const Fields& fs);
+  void read_mesh_file(const Fields& fs);
+  void add_mesh_node(long id, const Vec3& x);
+  void finish_mesh();
   void read_reference_nodes(const Field& f);
   void read_node_sets(const Field& f);
   void read_rigid_couplings(const Field& f);
@@ -205,6 +211,8 @@ class Loader {
   Problem& problem_;
   Model& model_;
   int num_mesh_nodes_ = 0;
+  std::unordered_map<long, int> node_of_id_;  ///< external id -> node index
+  long next_node_id_ = 1;                     ///< for reference nodes: after every mesh id
   Vec3 mesh_min_ = Vec3::Zero(), mesh_max_ = Vec3::Zero();
   double model_size_ = 0;  ///< bounding-box diagonal of the mesh
   std::map<std::string, int> reference_nodes_;
@@ -442,7 +450,18 @@ void Loader::read_blocks(const Field& f) {
 }
 
 void Loader::read_mesh(const Field& f) {
-  const Fields fs = map_of(f, "mesh", {"element", "element_size", "refinement", "boxes"});
+  const Fields fs = map_of(f, "mesh", {"element", "element_size", "refinement", "boxes", "file", "format", "scale"});
+  if (fs.find("file")) {
+    read_mesh_file(fs);
+  } else {
+    for (const char* key : {"format", "scale"})
+      if (const Field* k = fs.find(key)) fail(*k, quote(key) + " applies only to a mesh read from a 'file'");
+    read_box_mesh(fs);
+  }
+  finish_mesh();
+}
+
+void Loader::read_box_mesh(const Fields& fs) {
   SolidType type = SolidType::Hex8;
   if (const Field* e = fs.find("element")) {
     const std::vector<SolidType> types{SolidType::Hex8, SolidType::Tet4, SolidType::Tet10};
@@ -480,8 +499,7 @@ void Loader::read_mesh(const Field& f) {
 
   const detail::BoxMesh mesh = detail::generate_box_mesh(
       boxes, static_cast<int>(model_.blocks.size()), type, element_size, refinement);
-  for (size_t i = 0; i < mesh.coordinates.size(); ++i)
-    model_.add_node(static_cast<long>(i) + 1, mesh.coordinates[i]);
+  for (size_t i = 0; i < mesh.coordinates.size(); ++i) add_mesh_node(static_cast<long>(i) + 1, mesh.coordinates[i]);
   for (size_t k = 0; k < model_.blocks.size(); ++k) {
     ElementBlock& block = model_.blocks[k];
     if (mesh.connectivity[k].empty()) {
@@ -492,6 +510,58 @@ void Loader::read_mesh(const Field& f) {
     block.type = type;
     block.connectivity = mesh.connectivity[k];
   }
+}
+
+// A mesh made by another program: its blocks get the materials of the problem's blocks of the
+// same name, its node sets join the problem's.
+void Loader::read_mesh_file(const Fields& fs) {
+  for (const char* key : {"element", "element_size", "refinement", "boxes"})
+    if (const Field* k = fs.find(key))
+      fail(*k, quote(key) + " applies only to a generated mesh ('boxes'); a mesh read from a 'file' is used as it is");
+  const Field& file = required(fs, "file");
+  if (options_.refinement > 0)
+    fail(file, "refinement (--refine) applies only to a generated mesh ('boxes'); this mesh is read from " +
+                   quote(text(file)) + " (remesh it finer instead)");
+  std::optional<MeshFileFormat> mesh_format;
+  if (const Field* f = fs.find("format"))
+    mesh_format = choice(*f, {"gmsh", "exodus"}) == 0 ? MeshFileFormat::Gmsh : MeshFileFormat::Exodus;
+  const double scale = fs.find("scale") ? positive(*fs.find("scale")) : 1.0;
+  const std::string path = (std::filesystem::path(current_file_).parent_path() / text(file)).string();
+  MeshFile mesh;
+  try {
+    mesh = modalcal::read_mesh_file(path, mesh_format);
+  } catch (const ProblemError& e) {
+    fail(file, std::string(e.what()) + (e.message() == "no such mesh file" ? " (the path is relative to this file's folder)" : ""));
+  }
+  for (int v = 0; v < mesh.num_nodes(); ++v) add_mesh_node(mesh.node_ids[v], scale * mesh.coordinates[v]);
+
+  std::vector<std::string> file_blocks;
+  for (const MeshFileBlock& b : mesh.blocks) file_blocks.push_back(b.name);
+  for (ElementBlock& block : model_.blocks) {
+    const MeshFileBlock* from = mesh.find_block(block.name);
+    if (!from) {
+      current_file_ = entities_.at(block.name).file;
+      fail_at(entities_.at(block.name).line, "block " + quote(block.name),
+              "mesh file " + quote(path) + " has no block of this name; " + known("blocks", file_blocks));
+    }
+    block.type = from->type;
+    block.connectivity = from->connectivity;
+  }
+  for (const MeshFileBlock& b : mesh.blocks)
+    if (std::none_of(model_.blocks.begin(), model_.blocks.end(), [&](const ElementBlock& m) { return m.name == b.name; }))
+      fail(file, "mesh file " + quote(path) + " has block " + quote(b.name) + " (id " + std::to_string(b.id) + ", " +
+                     std::to_string(b.num_elements()) + " " + solid_type_name(b.type) +
+                     " elements), which 'blocks' gives no material; add " + b.name + ": {E: ..., nu: ..., density: ...}");
+  for (const MeshFileNodeSet& set : mesh.node_sets) model_.node_sets.push_back({set.name, set.nodes});
+  for (const std::string& warning : mesh.warnings) problem_.warnings.push_back(warning);
+}
+
+void Loader::add_mesh_node(long id, const Vec3& x) {
+  node_of_id_[id] = model_.add_node(id, x);
+  next_node_id_ = std::max(next_node_id_, id + 1);
+}
+
+void Loader::finish_mesh() {
   num_mesh_nodes_ = model_.num_nodes();
   mesh_min_ = mesh_max_ = model_.coordinates.front();
   for (const Vec3& x : model_.coordinates) {
@@ -504,14 +574,16 @@ void Loader::read_mesh(const Field& f) {
 void Loader::read_reference_nodes(const Field& f) {
   for (const Field& entry : named(f, "reference node")) {
     // Ids continue after the mesh's, so every node keeps the id it is created with.
-    const long id = model_.num_nodes() + 1;
-    reference_nodes_[entry.key] = model_.add_node(id, vec3(entry), true);
+    const long id = next_node_id_++;
+    reference_nodes_[entry.key] = node_of_id_[id] = model_.add_node(id, vec3(entry), true);
   }
 }
 
 void Loader::read_node_sets(const Field& f) {
   for (const Field& entry : named(f, "node set")) {
     const Fields fs = map_of(entry, entry.what, {"box", "sphere", "nodes", "block"});
+    if (model_.find_node_set(entry.key))
+      fail(entry, "a node set " + quote(entry.key) + " is already defined by the mesh file; choose another name");
     const Field& how = exactly_one(fs, {"box", "sphere", "nodes"});
     const Field* block = fs.find("block");
     NodeSet set{entry.key, {}};
@@ -1153,15 +1225,15 @@ int Loader::reference_node(const Field& f) const {
 
 int Loader::node_by_id(const Field& f) const {
   const long id = integer(f);
-  // Nodes are created with ids 1..N in order, so an id is its index + 1.
-  if (id < 1 || id > model_.num_nodes()) {
-    std::string ids = "mesh nodes are 1.." + std::to_string(num_mesh_nodes_);
-    if (model_.num_nodes() > num_mesh_nodes_)
-      ids += ", reference nodes " + std::to_string(num_mesh_nodes_ + 1) + ".." +
-             std::to_string(model_.num_nodes());
-    fail(f, "there is no node with id " + std::to_string(id) + "; " + ids);
-  }
-  return static_cast<int>(id) - 1;
+  const auto it = node_of_id_.find(id);
+  if (it != node_of_id_.end()) return it->second;
+  const auto [lo, hi] = std::minmax_element(model_.node_ids.begin(), model_.node_ids.begin() + num_mesh_nodes_);
+  std::string ids = "mesh nodes are " + std::to_string(*lo) + ".." + std::to_string(*hi);
+  if (*hi - *lo + 1 != num_mesh_nodes_) ids += " (with gaps)";
+  if (model_.num_nodes() > num_mesh_nodes_)
+    ids += ", reference nodes are " + std::to_string(model_.node_ids[num_mesh_nodes_]) + ".." +
+           std::to_string(model_.node_ids.back());
+  fail(f, "there is no node with id " + std::to_string(id) + "; " + ids);
 }
 
 int Loader::node(const Field& f) const {

@@ -1,6 +1,9 @@
 #include "modalcal/elements.hpp"
 
+#include <algorithm>
 #include <array>
+#include <iterator>
+#include <limits>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -173,7 +176,68 @@ PointData evaluate_point(SolidType type, const Eigen::Matrix3Xd& coords, const V
   return p;
 }
 
+void check_node_count(SolidType type, const Eigen::Matrix3Xd& coords) {
+  const int n = nodes_per_element(type);
+  if (coords.cols() != n) {
+    std::ostringstream msg;
+    msg << solid_type_name(type) << " element needs " << n << " nodes, got " << coords.cols();
+    throw std::invalid_argument(msg.str());
+  }
+}
+
+const QuadratureRule& stiffness_quadrature(SolidType type) {
+  if (type == SolidType::Tet4) return tet_centroid();
+  if (type == SolidType::Tet10) return tet_degree2();
+  return hex_gauss_2x2x2();
+}
+
+const QuadratureRule& mass_quadrature(SolidType type) {
+  if (type == SolidType::Tet4) return tet_degree2();
+  if (type == SolidType::Tet10) return tet_degree5();
+  return hex_gauss_2x2x2();
+}
+
+// Side corners in Exodus numbering, counter-clockwise seen from outside.
+constexpr int kHexSides[6][4] = {{0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6},
+                                 {0, 4, 7, 3}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+constexpr int kTetSides[4][3] = {{0, 1, 3}, {1, 2, 3}, {0, 3, 2}, {0, 2, 1}};
+
 }  // namespace
+
+double min_jacobian_determinant(SolidType type, const Eigen::Matrix3Xd& coords) {
+  check_node_count(type, coords);
+  // The corners catch a curved tet10 folded at a vertex, which the quadrature points can miss.
+  QuadratureRule corners;
+  if (type == SolidType::Hex8)
+    for (const auto& c : kHexCorners) corners.push_back({Vec3(c[0], c[1], c[2]), 0.0});
+  else
+    for (const Vec3& xi : {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)}) corners.push_back({xi, 0.0});
+  double smallest = std::numeric_limits<double>::infinity();
+  ShapeValues N;
+  ShapeGradients dNdxi;
+  for (const QuadratureRule* rule : {static_cast<const QuadratureRule*>(&corners), &stiffness_quadrature(type), &mass_quadrature(type)})
+    for (const QuadraturePoint& q : *rule) {
+      shape_functions(type, q.xi, N, dNdxi);
+      smallest = std::min(smallest, (coords * dNdxi).determinant());
+    }
+  return smallest;
+}
+
+int num_solid_sides(SolidType type) { return type == SolidType::Hex8 ? 6 : 4; }
+
+std::vector<int> solid_side_nodes(SolidType type, int side) {
+  if (side < 1 || side > num_solid_sides(type))
+    throw std::invalid_argument(solid_type_name(type) + " has sides 1.." + std::to_string(num_solid_sides(type)) +
+                                ", not " + std::to_string(side));
+  if (type == SolidType::Hex8) return {std::begin(kHexSides[side - 1]), std::end(kHexSides[side - 1])};
+  std::vector<int> nodes(std::begin(kTetSides[side - 1]), std::end(kTetSides[side - 1]));
+  if (type == SolidType::Tet10)
+    for (int e = 0; e < 6; ++e) {
+      const auto on_side = [&](int corner) { return std::find(nodes.begin(), nodes.begin() + 3, corner) != nodes.begin() + 3; };
+      if (on_side(kTetEdges[e][0]) && on_side(kTetEdges[e][1])) nodes.push_back(4 + e);
+    }
+  return nodes;
+}
 
 int nodes_per_element(SolidType type) {
   switch (type) {
@@ -200,23 +264,11 @@ std::string solid_type_name(SolidType type) {
 }
 
 SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3Xd& coords) {
+  check_node_count(type, coords);
   const int n = nodes_per_element(type);
-  if (coords.cols() != n) {
-    std::ostringstream msg;
-    msg << solid_type_name(type) << " element needs " << n << " nodes, got " << coords.cols();
-    throw std::invalid_argument(msg.str());
-  }
   const int ndof = 3 * n;
-
-  const QuadratureRule* stiffness_rule = &hex_gauss_2x2x2();
-  const QuadratureRule* mass_rule = &hex_gauss_2x2x2();
-  if (type == SolidType::Tet4) {
-    stiffness_rule = &tet_centroid();
-    mass_rule = &tet_degree2();
-  } else if (type == SolidType::Tet10) {
-    stiffness_rule = &tet_degree2();
-    mass_rule = &tet_degree5();
-  }
+  const QuadratureRule* stiffness_rule = &stiffness_quadrature(type);
+  const QuadratureRule* mass_rule = &mass_quadrature(type);
 
   // With d = B^T m (the divergence row) and W = diag(2,2,2,1,1,1) = 2 I0:
   //   vol = sum w detJ d d^T,   dev = sum w detJ (B^T W B - 2/3 d d^T).

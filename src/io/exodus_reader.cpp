@@ -1,0 +1,263 @@
+// Exodus II files through the Exodus II C library (exodusII.h, SEACAS): element blocks, node
+// sets and side sets. Every integer is read as int64_t (EX_ALL_INT64_API), whatever the file
+// stores.
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+
+#include <exodusII.h>
+
+#include "io/mesh_file_readers.hpp"
+
+namespace modalcal::detail {
+
+namespace {
+
+std::string quote(const std::string& s) { return "'" + s + "'"; }
+
+class ExodusFile {
+ public:
+  explicit ExodusFile(const std::string& path) : path_(path) {
+    int cpu_word_size = sizeof(double), io_word_size = 0;
+    float version = 0;
+    id_ = ex_open(path.c_str(), EX_READ, &cpu_word_size, &io_word_size, &version);
+    if (id_ < 0) fail("is not an Exodus II file, or the Exodus library cannot open it: " + last_error());
+    ex_set_int64_status(id_, EX_ALL_INT64_API);
+    // Names longer than the default 32 characters would otherwise come back truncated.
+    const auto name_length = static_cast<int>(ex_inquire_int(id_, EX_INQ_DB_MAX_USED_NAME_LENGTH));
+    ex_set_max_name_length(id_, std::max(name_length, 1));
+    max_name_length_ = std::max(name_length, 1);
+  }
+  ~ExodusFile() {
+    if (id_ >= 0) ex_close(id_);
+  }
+  ExodusFile(const ExodusFile&) = delete;
+  ExodusFile& operator=(const ExodusFile&) = delete;
+
+  int id() const { return id_; }
+  const std::string& path() const { return path_; }
+
+  [[noreturn]] void fail(const std::string& message) const { mesh_error(path_, message); }
+
+  /// Fails with `what` and the library's message unless `status` is success (0) or a warning (> 0).
+  void check(int status, const std::string& what) const {
+    if (status < 0) fail("cannot read " + what + ": " + last_error());
+  }
+
+  std::vector<int64_t> ids(ex_entity_type type, int64_t count, const std::string& what) const {
+    std::vector<int64_t> out(static_cast<size_t>(count));
+    if (count > 0) check(ex_get_ids(id_, type, out.data()), what + " ids");
+    return out;
+  }
+
+  /// The entities' names, "" where the file gives none.
+  std::vector<std::string> names(ex_entity_type type, int64_t count, const std::string& what) const {
+    std::vector<std::vector<char>> buffers(static_cast<size_t>(count), std::vector<char>(max_name_length_ + 1, '\0'));
+    std::vector<char*> pointers;
+    for (auto& b : buffers) pointers.push_back(b.data());
+    if (count > 0) check(ex_get_names(id_, type, pointers.data()), what + " names");
+    std::vector<std::string> out;
+    for (const auto& b : buffers) {
+      std::string name(b.data());
+      while (!name.empty() && std::isspace(static_cast<unsigned char>(name.back()))) name.pop_back();
+      out.push_back(name);
+    }
+    return out;
+  }
+
+ private:
+  static std::string last_error() {
+    const char* message = nullptr;
+    const char* function = nullptr;
+    int code = 0;
+    ex_get_err(&message, &function, &code);
+    std::string text = message && *message ? message : "unknown error";
+    // Negative codes are netCDF's (e.g. -51: not a netCDF file). nc_strerror would name them, but
+    // Debian's Exodus links the MPI build of netCDF, which has no development library to link.
+    if (code < 0) text += " (netCDF error " + std::to_string(code) + ")";
+    return text;
+  }
+
+  std::string path_;
+  int id_ = -1;
+  int max_name_length_ = 32;
+};
+
+std::string upper(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  return s;
+}
+
+// Exodus names a type (HEX8, HEX, TETRA, TETRA10, TET4, ...) and gives the nodes per element.
+bool solid_type_of(const std::string& exodus_type, int64_t nodes, SolidType* type) {
+  const std::string name = upper(exodus_type);
+  if (name.rfind("HEX", 0) == 0 && nodes == 8) *type = SolidType::Hex8;
+  else if (name.rfind("TET", 0) == 0 && nodes == 4) *type = SolidType::Tet4;
+  else if (name.rfind("TET", 0) == 0 && nodes == 10) *type = SolidType::Tet10;
+  else return false;
+  return true;
+}
+
+std::string name_or(const std::string& name, const std::string& prefix, int64_t id) {
+  return name.empty() ? prefix + "_" + std::to_string(id) : name;
+}
+
+class ExodusReader {
+ public:
+  explicit ExodusReader(const std::string& path) : file_(path) {}
+
+  RawMesh read() {
+    ex_init_params init{};
+    file_.check(ex_get_init_ext(file_.id(), &init), "the file's sizes (ex_get_init)");
+    if (init.num_dim != 3)
+      file_.fail("is a " + std::to_string(init.num_dim) + "-D mesh (num_dim = " + std::to_string(init.num_dim) +
+                 "); modalcal needs a 3-D mesh of solid elements");
+    read_nodes(init.num_nodes);
+    read_blocks(init.num_elem_blk, init.num_elem);
+    read_node_sets(init.num_node_sets);
+    read_side_sets(init.num_side_sets);
+    return std::move(mesh_);
+  }
+
+ private:
+  void read_nodes(int64_t count) {
+    std::vector<double> x(static_cast<size_t>(count)), y(x.size()), z(x.size());
+    std::vector<int64_t> ids(x.size());
+    if (count > 0) {
+      file_.check(ex_get_coord(file_.id(), x.data(), y.data(), z.data()), "the node coordinates");
+      file_.check(ex_get_id_map(file_.id(), EX_NODE_MAP, ids.data()), "the node number map");
+    }
+    for (size_t i = 0; i < x.size(); ++i) {
+      mesh_.coordinates.emplace_back(x[i], y[i], z[i]);
+      mesh_.node_ids.push_back(static_cast<long>(ids[i]));
+    }
+  }
+
+  // 1-based node number from the file -> index, checked.
+  int node_index(int64_t number, const std::string& where) const {
+    if (number < 1 || number > static_cast<int64_t>(mesh_.coordinates.size()))
+      file_.fail(where + " refers to node " + std::to_string(number) + ", but the file has nodes 1.." +
+                 std::to_string(mesh_.coordinates.size()));
+    return static_cast<int>(number - 1);
+  }
+
+  void read_blocks(int64_t count, int64_t num_elements) {
+    num_elements_ = num_elements;
+    std::vector<int64_t> element_ids(static_cast<size_t>(num_elements));
+    if (num_elements > 0)
+      file_.check(ex_get_id_map(file_.id(), EX_ELEM_MAP, element_ids.data()), "the element number map");
+    const std::vector<int64_t> ids = file_.ids(EX_ELEM_BLOCK, count, "element block");
+    const std::vector<std::string> names = file_.names(EX_ELEM_BLOCK, count, "element block");
+    size_t first_element = 0;  // blocks number their elements consecutively, in file order
+    for (size_t b = 0; b < ids.size(); ++b) {
+      const std::string name = name_or(names[b], "block", ids[b]);
+      const std::string what = "element block " + quote(name) + " (id " + std::to_string(ids[b]) + ")";
+      char type_name[MAX_STR_LENGTH + 1] = {};
+      int64_t elements = 0, nodes = 0, edges = 0, faces = 0, attributes = 0;
+      file_.check(ex_get_block(file_.id(), EX_ELEM_BLOCK, ids[b], type_name, &elements, &nodes, &edges, &faces,
+                               &attributes),
+                  what);
+      block_starts_.push_back(first_element);
+      MeshFileBlock block;
+      block.name = name;
+      block.id = ids[b];
+      if (elements > 0 && !solid_type_of(type_name, nodes, &block.type))
+        file_.fail(what + " has " + std::to_string(elements) + " elements of type " + quote(type_name) + " with " +
+                   std::to_string(nodes) + " nodes, which modalcal does not support; supported: HEX8, TETRA (4 nodes), "
+                   "TETRA10");
+      if (first_element + static_cast<size_t>(elements) > element_ids.size())
+        file_.fail(what + " has elements beyond the file's " + std::to_string(num_elements) + " elements");
+      std::vector<int64_t> connectivity(static_cast<size_t>(elements * nodes));
+      if (elements > 0)
+        file_.check(ex_get_conn(file_.id(), EX_ELEM_BLOCK, ids[b], connectivity.data(), nullptr, nullptr),
+                    "the connectivity of " + what);
+      for (int64_t v : connectivity) block.connectivity.push_back(node_index(v, what));
+      for (int64_t e = 0; e < elements; ++e) block.element_ids.push_back(static_cast<long>(element_ids[first_element + static_cast<size_t>(e)]));
+      first_element += static_cast<size_t>(elements);
+      if (elements == 0)
+        mesh_.warnings.push_back(file_.path() + ": " + what + " has no elements and is left out");
+      block_index_.push_back(elements == 0 ? -1 : static_cast<int>(mesh_.blocks.size()));
+      if (elements > 0) mesh_.blocks.push_back(std::move(block));
+    }
+  }
+
+  void read_node_sets(int64_t count) {
+    const std::vector<int64_t> ids = file_.ids(EX_NODE_SET, count, "node set");
+    const std::vector<std::string> names = file_.names(EX_NODE_SET, count, "node set");
+    for (size_t s = 0; s < ids.size(); ++s) {
+      MeshFileNodeSet set;
+      set.name = name_or(names[s], "nodeset", ids[s]);
+      set.source = "node set " + std::to_string(ids[s]);
+      const std::string what = "node set " + quote(set.name) + " (id " + std::to_string(ids[s]) + ")";
+      int64_t size = 0, factors = 0;
+      file_.check(ex_get_set_param(file_.id(), EX_NODE_SET, ids[s], &size, &factors), what);
+      std::vector<int64_t> nodes(static_cast<size_t>(size));
+      if (size > 0) file_.check(ex_get_set(file_.id(), EX_NODE_SET, ids[s], nodes.data(), nullptr), what);
+      for (int64_t v : nodes) set.nodes.push_back(node_index(v, what));
+      add_node_set(std::move(set));
+    }
+  }
+
+  void read_side_sets(int64_t count) {
+    const std::vector<int64_t> ids = file_.ids(EX_SIDE_SET, count, "side set");
+    const std::vector<std::string> names = file_.names(EX_SIDE_SET, count, "side set");
+    for (size_t s = 0; s < ids.size(); ++s) {
+      MeshFileSideSet sides;
+      sides.name = name_or(names[s], "sideset", ids[s]);
+      sides.id = ids[s];
+      const std::string what = "side set " + quote(sides.name) + " (id " + std::to_string(ids[s]) + ")";
+      int64_t size = 0, factors = 0;
+      file_.check(ex_get_set_param(file_.id(), EX_SIDE_SET, ids[s], &size, &factors), what);
+      std::vector<int64_t> elements(static_cast<size_t>(size)), side_numbers(elements.size());
+      if (size > 0)
+        file_.check(ex_get_set(file_.id(), EX_SIDE_SET, ids[s], elements.data(), side_numbers.data()), what);
+      MeshFileNodeSet set;
+      set.name = sides.name;
+      set.source = "side set " + std::to_string(ids[s]);
+      for (size_t k = 0; k < elements.size(); ++k) {
+        add_side_nodes(elements[k], side_numbers[k], what, &set.nodes);
+        sides.elements.push_back(static_cast<long>(elements[k]));
+        sides.sides.push_back(static_cast<int>(side_numbers[k]));
+      }
+      add_node_set(std::move(set));
+      mesh_.side_sets.push_back(std::move(sides));
+    }
+  }
+
+  // Side `side` of element `element` (1-based over all blocks): its nodes.
+  void add_side_nodes(int64_t element, int64_t side, const std::string& what, std::vector<int>* nodes) const {
+    if (element < 1 || element > num_elements_)
+      file_.fail(what + " refers to element " + std::to_string(element) + ", but the file has elements 1.." +
+                 std::to_string(num_elements_));
+    // The last block starting at or before the element; an empty block starts where the next
+    // one does, so this is never an empty block.
+    const auto index = static_cast<size_t>(element - 1);
+    const size_t b = static_cast<size_t>(std::upper_bound(block_starts_.begin(), block_starts_.end(), index) -
+                                         block_starts_.begin()) - 1;
+    const MeshFileBlock& block = mesh_.blocks[static_cast<size_t>(block_index_[b])];
+    if (side < 1 || side > num_solid_sides(block.type))
+      file_.fail(what + " refers to side " + std::to_string(side) + " of element " + std::to_string(element) +
+                 ", but a " + solid_type_name(block.type) + " has sides 1.." + std::to_string(num_solid_sides(block.type)));
+    const size_t n = static_cast<size_t>(nodes_per_element(block.type));
+    for (int k : solid_side_nodes(block.type, static_cast<int>(side)))
+      nodes->push_back(block.connectivity[(index - block_starts_[b]) * n + static_cast<size_t>(k)]);
+  }
+
+  void add_node_set(MeshFileNodeSet set) {
+    std::sort(set.nodes.begin(), set.nodes.end());
+    set.nodes.erase(std::unique(set.nodes.begin(), set.nodes.end()), set.nodes.end());
+    mesh_.node_sets.push_back(std::move(set));
+  }
+
+  ExodusFile file_;
+  RawMesh mesh_;
+  std::vector<size_t> block_starts_;  // first element (0-based, over all blocks) of each file block
+  std::vector<int> block_index_;      // each file block's index in mesh_.blocks, -1 if left out (empty)
+  int64_t num_elements_ = 0;
+};
+
+}  // namespace
+
+RawMesh read_exodus(const std::string& path) { return ExodusReader(path).read(); }
+
+}  // namespace modalcal::detail
