@@ -127,7 +127,10 @@ std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& r
   if (truth.hidden_effects.empty()) text += "hidden effect: none (the nominal model form is right)\n";
   char line[64];
   for (const ModelEffect& e : truth.hidden_effects) {
-    std::snprintf(line, sizeof line, " = %.6g (nominal %.6g): ", e.value, e.nominal_value);
+    if (std::isinf(e.nominal_value))
+      std::snprintf(line, sizeof line, " = %.6g (nominal rigid): ", e.value);
+    else
+      std::snprintf(line, sizeof line, " = %.6g (nominal %.6g): ", e.value, e.nominal_value);
     text += "hidden effect: " + e.name + line + e.description + "\n";
   }
   if (!truth.other_differences.empty()) text += "other differences: " + truth.other_differences + "\n";

@@ -956,7 +956,12 @@ SyntheticTruth Loader::recorded_truth(const Field& f) {
       effect.name = text(required(e, "name"));
       if (const Field* d = e.find("description")) effect.description = text(*d);
       effect.value = number(required(e, "value"));
-      effect.nominal_value = number(required(e, "nominal_value"));
+      // .inf: a flexible support, whose nominal is rigid.
+      const Field& nominal = required(e, "nominal_value");
+      if (nominal.node.IsScalar() && nominal.node.Scalar() == ".inf")
+        effect.nominal_value = std::numeric_limits<double>::infinity();
+      else
+        effect.nominal_value = number(nominal);
       truth.hidden_effects.push_back(effect);
     }
   if (const Field* other = fs.find("other_differences")) truth.other_differences = text(*other);
