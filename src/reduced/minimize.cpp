@@ -245,7 +245,8 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
     summary.iterations = k;
     if (options.function_tolerance > 0 && decrease <= options.function_tolerance * std::max(std::abs(current.value), 1.0)) {
       char message[160];
-      std::snprintf(message, sizeof message, "the last iteration lowered the objective by %.3e <= %.1e of it",
+      std::snprintf(message, sizeof message,
+                    "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
                     decrease, options.function_tolerance);
       return finish(TerminationType::Converged, message, current);
     }
