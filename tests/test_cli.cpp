@@ -275,6 +275,7 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_EQ(d["hidden_effect"][0]["name"], "added_mass_tip.mass");
   EXPECT_EQ(d["hidden_effect_rank"][0]["rank"], 1);
   EXPECT_EQ(d["recommended"], "added_mass_tip.mass");
+  EXPECT_EQ(RunCli("compare " + study + " --params " + dir + "/diagnose.json").exit_code, 0);  // its calibration
 
   // The engineer adds it: calibrate again with it, before and after side by side.
   run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --add point_mass@tip:mass --json " + dir +

@@ -36,9 +36,10 @@
 ///     \;=\; \frac{(j_\perp^T r)^2}{\|j_\perp\|^2} \text{ when the bounds do not bind,} \f]
 /// the bounds keeping one-sided effects (an added mass, a softer support) from "helping" by a
 /// negative value and tiny effects from helping by an absurd one. One evaluation of the model with
-/// every candidate added (at the value meaning "no effect"; a support at a stiff k₀ = 10⁴ k_ref)
+/// every candidate added (at the value meaning "no effect"; a support at a stiff k₀ = 10³ k_ref)
 /// gives all columns at once; its shape rows come from one adjoint solve per sensor reading
-/// (ObjectiveOptions::Jacobian), not per candidate.
+/// (ObjectiveOptions::Jacobian), not per candidate. Should that model fail to solve, the
+/// supports' candidates are evaluated apart, per support.
 ///
 /// **Refit.** The best few by prediction are recalibrated with all calibration parameters free
 /// (reduced L-BFGS from the calibrated point, the candidate started at its first-order value);
@@ -100,10 +101,11 @@ struct CandidateOptions {
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;
   /// The screen's stand-in for a rigid support: springs of this many k_ref (a support's screen
-  /// value k₀). Large enough that the model differs from the rigid one by about 1/this relative;
-  /// small enough that the support DOFs' motion stays above the eigenvectors' rounding.
-  /// Range: [1e2, 1e8].
-  double rigid_support_factor = 1e4;
+  /// value k₀). The screen's columns are taken at c₀ = 1/k₀ instead of 0 (an error of about
+  /// 1/this, relative; the residual itself is the rigid model's). Much stiffer springs inflate
+  /// tr(K), by which the eigen-solver judges what is a rigid-body mode: with 10⁴ k_ref the portal
+  /// frame's column feet made its first elastic mode look rigid. Range: [10, 1e8].
+  double rigid_support_factor = 1e3;
   /// Returns false and names the field, its value and the violated condition.
   bool IsValid(std::string* error) const;
 };

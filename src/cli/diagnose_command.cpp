@@ -85,6 +85,12 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                          {"iterations", d.calibration.iterations},
                          {"forward_solves", d.calibration.forward_solves},
                          {"time_s", d.calibration.seconds}};
+  // The nominal calibration's values, as calibrate writes them (so that --params takes this file).
+  json["parameters"] = nlohmann::json::array();
+  for (size_t j = 0; j < problem.parameters.size(); ++j)
+    json["parameters"].push_back({{"name", problem.parameters[j].name},
+                                  {"initial", d.calibration.initial[j]},
+                                  {"final", d.calibration.final[j]}});
   json["residual_before"] = residual_json(d.before);
   json["residual_after"] = d.after ? residual_json(*d.after) : nlohmann::json();
   json["recommended"] = d.recommended >= 0 ? nlohmann::json(d.ranking.effects[d.recommended].candidate.name)

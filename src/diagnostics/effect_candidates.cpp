@@ -358,8 +358,8 @@ bool CandidateOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(gap_factor > 0)) return bad("gap_factor = " + std::to_string(gap_factor) + ": must be > 0");
-  if (!(rigid_support_factor >= 1e2 && rigid_support_factor <= 1e8))
-    return bad("rigid_support_factor = " + std::to_string(rigid_support_factor) + ": must be in [1e2, 1e8]");
+  if (!(rigid_support_factor >= 10 && rigid_support_factor <= 1e8))
+    return bad("rigid_support_factor = " + std::to_string(rigid_support_factor) + ": must be in [10, 1e8]");
   return true;
 }
 

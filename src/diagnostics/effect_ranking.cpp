@@ -147,11 +147,13 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   EffectRanking ranking;
   ranking.noise_known = problem.measurement_noise && problem.measurement_noise->frequency > 0;
   Misfit before;
+  Vector r;  // the residual at the calibrated point, of the model as it is (supports rigid)
   {
     Objective objective(problem, options.objective);
     const Evaluation e = objective.evaluate(calibrated);
     if (!e.ok) throw std::runtime_error("rank_effects: the calibrated point cannot be evaluated: " + e.message);
     before = misfit_of(objective, e, np, options.significance);
+    r = e.residuals;
   }
   ranking.chi2_before = before.statistic;
   ranking.dof_before = before.dof;
@@ -159,7 +161,6 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
 
   // Every candidate at once, at its screen value; those that do not apply are set aside.
   std::vector<EffectCandidate> usable;
-  std::vector<double> screen_values;
   {
     Model trial = problem.model;
     for (const EffectCandidate& c : candidates) {
@@ -168,24 +169,68 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
       try {
         apply_model_change(&trial, change);
         usable.push_back(c);
-        screen_values.push_back(c.screen_value);
       } catch (const std::invalid_argument& e) {
         ranking.set_aside.emplace_back(c.name, std::string("could not be applied: ") + e.what());
       }
     }
   }
-  const Problem augmented = problem_with_effects(problem, usable, screen_values);
-  Objective objective(augmented, options.objective);
-  Vector p(np + usable.size());
-  p << calibrated, Eigen::Map<const Vector>(screen_values.data(), static_cast<Eigen::Index>(screen_values.size()));
-  const Evaluation e = objective.evaluate(p, Need::Jacobian);
-  if (!e.ok) throw std::runtime_error("rank_effects: the model with every candidate cannot be evaluated: " + e.message);
-  ranking.linear_solves = e.linear_solves;
-  const Vector& r = e.residuals;
+  // The Jacobian of the model with a group of candidates added, calibration parameters first.
+  auto jacobian_with = [&](const std::vector<EffectCandidate>& group, Evaluation* e) {
+    std::vector<double> values;
+    for (const EffectCandidate& c : group) values.push_back(c.screen_value);
+    const Problem augmented = problem_with_effects(problem, group, values);
+    Objective objective(augmented, options.objective);
+    Vector p(np + group.size());
+    p << calibrated, Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
+    *e = objective.evaluate(p, Need::Jacobian);
+    ranking.linear_solves += e->linear_solves;
+    return e->ok;
+  };
+  // One evaluation for all. If that model cannot be solved (many stiff support springs can make
+  // the eigen-solver take elastic modes for rigid ones), the other candidates and each support's
+  // candidates are evaluated apart, and a group that still fails is set aside.
+  Matrix Jp, columns(r.size(), static_cast<Eigen::Index>(usable.size()));
+  std::vector<bool> evaluated(usable.size(), false);
+  Evaluation e;
+  if (jacobian_with(usable, &e)) {
+    Jp = e.jacobian.leftCols(np);
+    columns = e.jacobian.rightCols(usable.size());
+    evaluated.assign(usable.size(), true);
+  } else {
+    std::vector<std::string> keys;  // "" for the other candidates, else the support's place
+    std::vector<std::vector<size_t>> groups;
+    for (size_t k = 0; k < usable.size(); ++k) {
+      const ModelChange& change = usable[k].change;
+      const std::string key =
+          change.kind == ModelChange::Kind::FlexibleSupport ? "support " + to_string(change).substr(0, to_string(change).find(':')) : "";
+      const auto at = std::find(keys.begin(), keys.end(), key);
+      if (at == keys.end()) {
+        keys.push_back(key);
+        groups.push_back({k});
+      } else {
+        groups[at - keys.begin()].push_back(k);
+      }
+    }
+    for (const std::vector<size_t>& group : groups) {
+      std::vector<EffectCandidate> members;
+      for (size_t k : group) members.push_back(usable[k]);
+      if (!jacobian_with(members, &e)) {
+        for (size_t k : group) ranking.set_aside.emplace_back(usable[k].name, "could not be evaluated: " + e.message);
+        continue;
+      }
+      if (Jp.size() == 0) Jp = e.jacobian.leftCols(np);
+      for (size_t a = 0; a < group.size(); ++a) {
+        columns.col(group[a]) = e.jacobian.col(np + a);
+        evaluated[group[a]] = true;
+      }
+    }
+    if (Jp.size() == 0 && np > 0)
+      throw std::runtime_error("rank_effects: no model with candidates added can be evaluated: " + e.message);
+  }
 
   // What the calibration parameters can already do: an orthonormal basis of their columns.
   Matrix Q(r.size(), 0);
-  Matrix Jp = e.jacobian.leftCols(np);
+  if (Jp.size() == 0) Jp = Matrix(r.size(), 0);
   Vector column_norms = Vector::Ones(np);
   for (int j = 0; j < np; ++j)
     if (const double n = Jp.col(j).norm(); n > 0) {
@@ -210,8 +255,9 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   };
   std::vector<RankedEffect> screened;
   for (size_t k = 0; k < usable.size(); ++k) {
+    if (!evaluated[k]) continue;
     const EffectCandidate& c = usable[k];
-    const Vector column = e.jacobian.col(np + k) * value_per_variable(c, c.screen_value);
+    const Vector column = columns.col(k) * value_per_variable(c, c.screen_value);
     const double norm = column.norm();
     if (!(norm > 0) || !std::isfinite(norm)) {
       ranking.set_aside.emplace_back(c.name, "no effect on the measured modes");
