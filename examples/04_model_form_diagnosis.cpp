@@ -20,8 +20,7 @@
 
 int main(int argc, char** argv) {
   using namespace modalcal;
-  const std::string path =
-      argc > 1 ? argv[1] : std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu-hidden/top-mass.yaml";
+  const std::string path = argc > 1 ? argv[1] : std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu-hidden/top-mass.yaml";
 
   // 1. The problem: nominal model, five calibration parameters, measured modes with their noise
   //    (the data file's `noise:`), and, for synthetic data, the truth they were made from.

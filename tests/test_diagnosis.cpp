@@ -72,7 +72,8 @@ Problem WithHiddenEffect(const std::vector<std::string>& changes, std::uint64_t 
   SynthesisOptions options;
   options.modes = problem.synthetic->modes;
   options.noise = {0.002, 0.02, seed};
-  const MeasuredData data = synthesize_measured_data(problem, make_truth(problem, nullptr, parsed), problem.sensors, options);
+  const MeasuredData data =
+      synthesize_measured_data(problem, make_truth(problem, nullptr, parsed), problem.sensors, options);
   problem.measured = data.modes;
   problem.synthetic.reset();
   problem.measurement_noise = data.noise;
@@ -172,7 +173,8 @@ effects:
   const EffectCandidate start = make_candidate(problem, "support@root:ky=50");
   EXPECT_EQ(start.name, "support_root.ky");
   EXPECT_EQ(*start.initial, 50);
-  const std::string sensor_mass = "added_mass_node" + std::to_string(problem.model.node_ids[problem.sensors[0].node]) + ".mass";
+  const std::string sensor_mass =
+      "added_mass_node" + std::to_string(problem.model.node_ids[problem.sensors[0].node]) + ".mass";
   EXPECT_EQ(make_candidate(problem, sensor_mass).name, sensor_mass);
   EXPECT_THROW(make_candidate(problem, "nosuch.kx"), std::invalid_argument);
   EXPECT_THROW(make_candidate(problem, "j.kx"), std::invalid_argument);  // calibrated already
@@ -194,8 +196,8 @@ TEST(EffectCandidates, ProblemWithEffectsAddsThemAsParameters) {
   EXPECT_EQ(a.name, "j.krx");
   EXPECT_EQ(with.model.properties[a.targets[0]].name, "j.krx");
   EXPECT_EQ(a.initial, 5.0);
-  EXPECT_EQ(a.scaling, Scaling::Log);  // a positive value: searched in decades ...
-  EXPECT_EQ(a.lower, 5e-3);            // ... down to a thousandth of it
+  EXPECT_EQ(a.scaling, Scaling::Log);                      // a positive value: searched in decades ...
+  EXPECT_EQ(a.lower, 5e-3);                                // ... down to a thousandth of it
   EXPECT_EQ(with.parameters[4].scaling, Scaling::Linear);  // at 0: linear
   EXPECT_EQ(with.parameters[4].lower, 0);
   // The added parameter acts on the model as the change does.
@@ -272,9 +274,8 @@ TEST(EffectRanking, AOneSidedEffectDoesNotHelpByANegativeValue) {
   // negative mass, which its bounds forbid, so its prediction is 0.
   const Problem problem = noise_weighted(WithHiddenEffect({"top.mass_scale=0.9"}, 2), MeasurementNoise{0.002, 0.02, 2});
   const EffectRanking ranking =
-      rank_effects(problem, problem.truth_values(), {make_candidate(problem, "point_mass@tip:mass"),
-                                                     make_candidate(problem, "top.mass_scale")},
-                   [] {
+      rank_effects(problem, problem.truth_values(),
+                   {make_candidate(problem, "point_mass@tip:mass"), make_candidate(problem, "top.mass_scale")}, [] {
                      RankingOptions o;
                      o.refits = 0;
                      return o;

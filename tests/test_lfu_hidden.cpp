@@ -65,8 +65,8 @@ TEST(LfuHiddenData, TheReadmeCommandsReproduceEveryDataFile) {
     for (size_t k = 1; k + 1 < words.size(); ++k) command += " '" + words[k] + "'";
     command += " '" + (out / data).string() + "' > /dev/null";
     ASSERT_EQ(std::system(command.c_str()), 0) << command;
-    EXPECT_EQ(ReadFile((out / data).string()), ReadFile(folder + "/" + data)) << data << " differs from what\n" << line
-                                                                             << "\nmakes";
+    EXPECT_EQ(ReadFile((out / data).string()), ReadFile(folder + "/" + data)) << data << " differs from what\n"
+                                                                              << line << "\nmakes";
     ++commands;
   }
   EXPECT_EQ(commands, 6);
@@ -118,11 +118,12 @@ TEST_P(LfuHidden, DiagnosisFindsWhatWasHidden) {
     ASSERT_TRUE(d.after && d.after->test) << report;
     EXPECT_FALSE(d.after->test->model_form_error) << report;  // the residual is down to the noise
   }
-  std::printf("CASE %s: %s ranked %d of %d; chi-square %.1f -> %.1f on %d dof (p %.2g -> %.2g); value %.4g "
-              "(truth %.4g, %+.1f %%, standard error %.2g)\n",
-              GetParam().file, truth.name.c_str(), rank, d.ranking.screened, d.ranking.chi2_before, found.chi2_after,
-              found.dof_after, d.before.test->p_value, found.p_value_after, found.value, truth.value,
-              100 * (found.value / truth.value - 1), found.standard_error);
+  std::printf(
+      "CASE %s: %s ranked %d of %d; chi-square %.1f -> %.1f on %d dof (p %.2g -> %.2g); value %.4g "
+      "(truth %.4g, %+.1f %%, standard error %.2g)\n",
+      GetParam().file, truth.name.c_str(), rank, d.ranking.screened, d.ranking.chi2_before, found.chi2_after,
+      found.dof_after, d.before.test->p_value, found.p_value_after, found.value, truth.value,
+      100 * (found.value / truth.value - 1), found.standard_error);
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, LfuHidden,

@@ -31,7 +31,7 @@ namespace modalcal {
 struct FitState {
   std::vector<std::string> parameter_names;  ///< calibration parameters, then added effects
   Vector parameters;
-  std::vector<PairedMode> pairs;             ///< measured and model modes, paired
+  std::vector<PairedMode> pairs;  ///< measured and model modes, paired
   /// The residual test against the stated noise (absent without one).
   std::optional<ResidualTest> test;
   /// \f$X^2\f$ of the test, or 2J of the problem's objective without a stated noise.
@@ -64,17 +64,17 @@ struct DiagnosisOptions {
 
 struct Diagnosis {
   bool noise_known = false;
-  ReducedSummary calibration;        ///< the nominal calibration
-  FitState before;                   ///< at its result
+  ReducedSummary calibration;  ///< the nominal calibration
+  FitState before;             ///< at its result
   std::optional<Localization> localization;
-  std::string localization_note;     ///< why there is none, when there is none
+  std::string localization_note;  ///< why there is none, when there is none
   std::vector<EffectCandidate> candidates;
   EffectRanking ranking;
   /// Index into ranking.effects of the effect to add: the first, when the residual test flags a
   /// model-form error (or without noise) and its refit is significant; -1 otherwise.
   int recommended = -1;
-  std::optional<FitState> after;     ///< with the recommended effect
-  std::string recommendation;        ///< in words
+  std::optional<FitState> after;  ///< with the recommended effect
+  std::string recommendation;     ///< in words
 };
 
 /// Runs the loop on `problem` from the parameter values `start`.

@@ -14,10 +14,11 @@
 /// | each joint, spring | its six components: present ones | log | ×/÷ 10 |
 /// | | absent ones (the rotational ones a nominal model leaves out) | linear from 0 | [0, 100 k_ref] |
 /// | each point mass | `mass` | log | ×/÷ 10 |
-/// | each node set not held fixed | a spring to ground along x, y, z on each node; an added mass on each node | linear from 0 | [0, 100 k_ref], [0, m_ref / n] |
-/// | each fixed node set | a flexible support per fixed component (`support@SET:kx`) | compliance 1/k from 0 | [k_ref / 1000, k₀] |
-/// | each sensor node | an added point mass (a sensor's or cable's mass loading) | linear from 0 | [0, m_ref] |
-/// | two blocks with no shared node, closer than a few elements | a spring (joint) along x, y, z between their nearest nodes | linear from 0 | [0, 100 k_ref] |
+/// | each free node set | a spring to ground along x, y, z on each node | linear from 0 | [0, 100 k_ref] |
+/// | | an added mass on each of its n nodes | linear from 0 | [0, m_ref / 2n] |
+/// | each fixed node set | support flexibility per direction (`support@SET:kx`) | compliance | [k_ref/1000, k₀] |
+/// | each sensor node | an added point mass (a sensor's or cable's mass loading) | linear from 0 | [0, m_ref / 2] |
+/// | blocks sharing no node, within 2 elements | a joint along x, y, z between nearest nodes | from 0 | [0, 100 k_ref] |
 ///
 /// k_ref is the stiffness of a node in the adjoining block, \f$E h\f$ (E Young's modulus, h the
 /// element size), or for a joint's absent rotational component its translational stiffness (the
@@ -77,26 +78,26 @@ struct EffectCandidate {
     Linear,      ///< the value itself, from a nominal of 0 (absent components, added masses and springs)
     Compliance,  ///< 1/k of a flexible support, from 0 (rigid); the refit works in log10 k
   };
-  std::string name;          ///< canonical `<entity>.<property>`, e.g. "joint2.kry"
-  std::string description;   ///< in words, e.g. "rotational stiffness about y of joint joint2"
-  ModelChange change;        ///< its value is set to the candidate's value when applied
+  std::string name;         ///< canonical `<entity>.<property>`, e.g. "joint2.kry"
+  std::string description;  ///< in words, e.g. "rotational stiffness about y of joint joint2"
+  ModelChange change;       ///< its value is set to the candidate's value when applied
   Variable variable = Variable::Log;
-  double nominal = 1;        ///< the value that means "no effect": 1, 0, or +infinity (rigid support)
-  double screen_value = 1;   ///< where the screen linearizes: the nominal, or k₀ for a support
-  double reference = 1;      ///< a typical magnitude (physical units), for scaling
-  double lower = 0, upper = 0;         ///< bounds of the value, lower < upper
-  std::optional<double> initial;       ///< a declared start (else the first-order estimate)
-  bool declared = false;               ///< from the problem file's `effects:` or the command line
+  double nominal = 1;             ///< the value that means "no effect": 1, 0, or +infinity (rigid support)
+  double screen_value = 1;        ///< where the screen linearizes: the nominal, or k₀ for a support
+  double reference = 1;           ///< a typical magnitude (physical units), for scaling
+  double lower = 0, upper = 0;    ///< bounds of the value, lower < upper
+  std::optional<double> initial;  ///< a declared start (else the first-order estimate)
+  bool declared = false;          ///< from the problem file's `effects:` or the command line
 };
 
 /// Which automatic candidates to generate (all by default).
 struct CandidateOptions {
-  bool blocks = true;          ///< stiffness and mass scale per block
-  bool joints = true;          ///< six components per joint and spring, mass per point mass
-  bool node_sets = true;       ///< springs to ground and added masses per free node set
-  bool supports = true;        ///< flexibility of each fixed node set, per fixed component
-  bool sensor_masses = true;   ///< an added mass at each sensor node
-  bool between_parts = true;   ///< springs between blocks that share no node but nearly touch
+  bool blocks = true;         ///< stiffness and mass scale per block
+  bool joints = true;         ///< six components per joint and spring, mass per point mass
+  bool node_sets = true;      ///< springs to ground and added masses per free node set
+  bool supports = true;       ///< flexibility of each fixed node set, per fixed component
+  bool sensor_masses = true;  ///< an added mass at each sensor node
+  bool between_parts = true;  ///< springs between blocks that share no node but nearly touch
   /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;
@@ -158,8 +159,8 @@ struct RankingOptions {
 
 struct RankedEffect {
   EffectCandidate candidate;
-  double predicted_reduction = 0;   ///< first-order \f$\Delta X^2_{pred}\f$ (bounded)
-  double predicted_value = 0;       ///< the value at the first-order optimum
+  double predicted_reduction = 0;  ///< first-order \f$\Delta X^2_{pred}\f$ (bounded)
+  double predicted_value = 0;      ///< the value at the first-order optimum
   bool refitted = false;
   double achieved_reduction = NAN;  ///< \f$X^2_{before} - X^2_{after}\f$ of the refit
   double value = NAN;               ///< identified by the refit (else the predicted value)
@@ -167,17 +168,17 @@ struct RankedEffect {
   int dof_after = 0;
   double p_value_after = NAN;
   bool model_form_error_after = false;  ///< the residual test still fails with the effect
-  double delta_bic = NAN;           ///< \f$\Delta X^2 - \ln n\f$
-  double delta_aic = NAN;           ///< \f$\Delta X^2 - 2\f$
+  double delta_bic = NAN;               ///< \f$\Delta X^2 - \ln n\f$
+  double delta_aic = NAN;               ///< \f$\Delta X^2 - 2\f$
   /// One standard deviation of the identified value, \f$\sqrt{((J^T J)^{-1})_{\theta\theta}}\f$ with
   /// the noise-weighted Jacobian at the refit (the first-ranked effect only; NaN otherwise or
   /// without a stated noise).
   double standard_error = NAN;
-  bool significant = false;         ///< likelihood-ratio test passed (refitted only)
+  bool significant = false;  ///< likelihood-ratio test passed (refitted only)
   /// The refit's calibration parameters, then the effect's value; before a refit, the
   /// first-order estimate of them (its start).
   Vector parameters;
-  ReducedSummary refit;             ///< the refit's optimizer summary
+  ReducedSummary refit;  ///< the refit's optimizer summary
   /// "rotational stiffness about y of joint joint2, identified 3.1e+05" (or "predicted ...").
   std::string summary() const;
 };
@@ -185,17 +186,17 @@ struct RankedEffect {
 struct EffectRanking {
   /// Refitted candidates by achieved reduction, then the others by predicted reduction.
   std::vector<RankedEffect> effects;
-  double chi2_before = 0;       ///< \f$X^2\f$ at the calibrated point (or 2J without noise)
+  double chi2_before = 0;  ///< \f$X^2\f$ at the calibrated point (or 2J without noise)
   int dof_before = 0;
-  int num_data = 0;             ///< n: one per frequency, s - 1 per shape of s values
-  bool noise_known = false;     ///< the residuals were weighted by a stated noise
-  int screened = 0;             ///< candidates with a usable column
+  int num_data = 0;          ///< n: one per frequency, s - 1 per shape of s values
+  bool noise_known = false;  ///< the residuals were weighted by a stated noise
+  int screened = 0;          ///< candidates with a usable column
   /// Candidates the screen set aside, with the reason ("no effect on the measured modes", "the
   /// calibration parameters already do this", "could not be applied: ...").
   std::vector<std::pair<std::string, std::string>> set_aside;
-  double critical_value = 0;    ///< of the likelihood-ratio test
+  double critical_value = 0;  ///< of the likelihood-ratio test
   double screen_seconds = 0, refit_seconds = 0;
-  int linear_solves = 0;        ///< of the screen's Jacobian
+  int linear_solves = 0;  ///< of the screen's Jacobian
 };
 
 /// Screens `candidates` at the calibrated parameters `calibrated` of `problem` (weighted by its

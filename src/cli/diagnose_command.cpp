@@ -3,7 +3,6 @@
 // says what to add (diagnosis.hpp).
 
 #include <CLI/CLI.hpp>
-
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -93,8 +92,8 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                                   {"final", d.calibration.final[j]}});
   json["residual_before"] = residual_json(d.before);
   json["residual_after"] = d.after ? residual_json(*d.after) : nlohmann::json();
-  json["recommended"] = d.recommended >= 0 ? nlohmann::json(d.ranking.effects[d.recommended].candidate.name)
-                                           : nlohmann::json();
+  json["recommended"] =
+      d.recommended >= 0 ? nlohmann::json(d.ranking.effects[d.recommended].candidate.name) : nlohmann::json();
   json["recommendation"] = d.recommendation;
   json["localization"] = nlohmann::json::array();
   if (d.localization)
@@ -186,21 +185,25 @@ int run_diagnose(const DiagnoseArgs& args) {
 void register_diagnose_command(CLI::App& app, int* exit_code) {
   auto args = std::make_shared<DiagnoseArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "diagnose", "Model-form diagnosis: calibrate, test the residual, localize, rank candidate effects, refit the best");
+      "diagnose",
+      "Model-form diagnosis: calibrate, test the residual, localize, rank candidate effects, refit the best");
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
   cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
   cmd->add_option("--start-factor", args->start_factor, "multiply the start values by this factor")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--refits", args->refits, "refit this many of the best-predicted effects (default 3)")
       ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--significance", args->significance, "level of the residual and likelihood-ratio tests (default 0.01)")
+  cmd->add_option("--significance", args->significance,
+                  "level of the residual and likelihood-ratio tests (default 0.01)")
       ->check(CLI::Range(1e-12, 0.5));
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file");
-  cmd->add_option("--vtu", args->vtu, "write the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this directory");
+  cmd->add_option("--vtu", args->vtu,
+                  "write the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this directory");
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->callback([args, exit_code] { *exit_code = run_diagnose(*args); });
 }

@@ -10,9 +10,7 @@ namespace modalcal {
 
 namespace {
 
-bool has_noise(const Problem& problem) {
-  return problem.measurement_noise && problem.measurement_noise->frequency > 0;
-}
+bool has_noise(const Problem& problem) { return problem.measurement_noise && problem.measurement_noise->frequency > 0; }
 
 bool has_shapes(const Problem& problem) {
   for (const MeasuredMode& m : problem.measured)
@@ -150,12 +148,14 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   const bool flagged = !d.before.test || d.before.test->model_form_error;
   const bool have_best = !d.ranking.effects.empty() && d.ranking.effects.front().refitted;
   if (!flagged) {
-    d.recommendation = "No model-form error: the calibrated residual is consistent with the stated noise; nothing "
-                       "needs adding.";
+    d.recommendation =
+        "No model-form error: the calibrated residual is consistent with the stated noise; nothing "
+        "needs adding.";
   } else if (!have_best || !d.ranking.effects.front().significant) {
-    d.recommendation = "No candidate effect explains the residual significantly: the missing physics is not among "
-                       "the " + std::to_string(d.ranking.screened) +
-                       " candidates (declare your own under effects: in the problem file).";
+    d.recommendation =
+        "No candidate effect explains the residual significantly: the missing physics is not among "
+        "the " +
+        std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
   } else {
     d.recommended = 0;
     const RankedEffect& best = d.ranking.effects.front();
@@ -168,8 +168,10 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
     if (!d.after->test)
       d.recommendation += "Without a stated noise it is not known whether anything else is missing.";
     else if (d.after->test->model_form_error)
-      d.recommendation += "The residual is still larger than the noise: diagnose again with it added "
-                          "(fullspace_calib calibrate --add " + best.candidate.name + ").";
+      d.recommendation +=
+          "The residual is still larger than the noise: diagnose again with it added "
+          "(fullspace_calib calibrate --add " +
+          best.candidate.name + ").";
     else
       d.recommendation += "With it the residual is consistent with the noise.";
   }

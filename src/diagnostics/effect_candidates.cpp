@@ -118,12 +118,13 @@ class CandidateFactory {
 
   /// The candidate, or nullopt with the reason in *why.
   std::optional<EffectCandidate> from_change(ModelChange change, std::string* why) const {
-    const bool stiffness = change.kind != ModelChange::Kind::AddPointMass &&
-                           std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys), change.property) !=
-                               std::end(kStiffnessKeys);
-    const int component = stiffness ? static_cast<int>(std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys),
-                                                                 change.property) - std::begin(kStiffnessKeys))
-                                    : -1;
+    const bool stiffness =
+        change.kind != ModelChange::Kind::AddPointMass &&
+        std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys), change.property) != std::end(kStiffnessKeys);
+    const int component =
+        stiffness ? static_cast<int>(std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys), change.property) -
+                                     std::begin(kStiffnessKeys))
+                  : -1;
     // Apply it with a harmless value to learn its name, words, nominal value and nodes.
     change.value = change.property == "nu" ? 0.25 : 1;
     Model changed = model_;
@@ -144,7 +145,8 @@ class CandidateFactory {
     c.change = change;
     const std::string entity = effect.name.substr(0, effect.name.rfind('.'));
     const std::vector<int> nodes = nodes_of(changed, entity);
-    const bool rotational = component >= 3 || (change.kind == ModelChange::Kind::AddPointMass && change.property != "mass");
+    const bool rotational =
+        component >= 3 || (change.kind == ModelChange::Kind::AddPointMass && change.property != "mass");
     const double h = scales_.element_size(nodes);
     const double length_squared = rotational ? h * h : 1;
 
@@ -192,8 +194,8 @@ class CandidateFactory {
       } else if (change.kind == ModelChange::Kind::AddJoint) {
         // Between two parts: the softer side decides.
         const Joint* added = find_joint(changed, entity);
-        k_ref = std::min(scales_.node_stiffness({added->node_a}), scales_.node_stiffness({added->node_b})) *
-                length_squared;
+        k_ref =
+            std::min(scales_.node_stiffness({added->node_a}), scales_.node_stiffness({added->node_b})) * length_squared;
       }
       c.reference = k_ref;
       c.upper = 100 * k_ref;
@@ -230,7 +232,8 @@ class CandidateFactory {
     }
     const std::vector<std::array<bool, 6>> fixed = fixed_dofs(model_);
     for (const NodeSet& set : model_.node_sets) {
-      std::array<bool, 6> all_fixed{true, true, true, true, true, true}, any_free{false, false, false, false, false, false};
+      std::array<bool, 6> all_fixed{true, true, true, true, true, true},
+          any_free{false, false, false, false, false, false};
       for (int v : set.nodes)
         for (int c = 0; c < 6; ++c) {
           all_fixed[c] = all_fixed[c] && fixed[v][c];
@@ -248,7 +251,8 @@ class CandidateFactory {
     if (options_.sensor_masses) {
       std::set<int> nodes;
       for (const Sensor& s : problem_.sensors)
-        if (nodes.insert(s.node).second) add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
+        if (nodes.insert(s.node).second)
+          add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
     }
     if (options_.between_parts) append_between_parts(fixed, &changes);
 
@@ -374,7 +378,8 @@ std::vector<EffectCandidate> generate_candidates(const Problem& problem, const C
     if (d.initial) c.initial = d.initial;
     if (d.lower) c.lower = *d.lower;
     if (d.upper) c.upper = *d.upper;
-    const auto same = std::find_if(candidates.begin(), candidates.end(), [&](const auto& a) { return a.name == c.name; });
+    const auto same =
+        std::find_if(candidates.begin(), candidates.end(), [&](const auto& a) { return a.name == c.name; });
     if (same != candidates.end())
       *same = c;
     else

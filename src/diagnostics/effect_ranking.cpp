@@ -1,7 +1,6 @@
 // The effect ranking: a first-order screen of every candidate from one Jacobian, then refits of
 // the best (formulas in effects.hpp).
 #include <Eigen/QR>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,9 +16,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 /// The screening variable of a value, and back.
 double to_variable(const EffectCandidate& c, double value) {
@@ -201,8 +198,9 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     std::vector<std::vector<size_t>> groups;
     for (size_t k = 0; k < usable.size(); ++k) {
       const ModelChange& change = usable[k].change;
-      const std::string key =
-          change.kind == ModelChange::Kind::FlexibleSupport ? "support " + to_string(change).substr(0, to_string(change).find(':')) : "";
+      const std::string key = change.kind == ModelChange::Kind::FlexibleSupport
+                                  ? "support " + to_string(change).substr(0, to_string(change).find(':'))
+                                  : "";
       const auto at = std::find(keys.begin(), keys.end(), key);
       if (at == keys.end()) {
         keys.push_back(key);
@@ -249,7 +247,8 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     for (int j = 0; j < np; ++j) {
       const Parameter& q = problem.parameters[j];
       const double v = calibrated[j] + shift[j];
-      p1[j] = std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
+      p1[j] =
+          std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
     }
     return p1;
   };
@@ -293,8 +292,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // Refits of the best predictions: every calibration parameter free, the effect started at its
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
-  ranking.critical_value =
-      chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
+  ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
   for (int k = 0; k < std::min<int>(options.refits, static_cast<int>(screened.size())); ++k) {
     RankedEffect& ranked = screened[k];
     if (!(ranked.predicted_reduction > 0) && !ranked.candidate.initial) continue;
