@@ -18,7 +18,7 @@
 /// | | an added mass on each of its n nodes | linear from 0 | [0, m_ref / 2n] |
 /// | each fixed node set | support flexibility per direction (`support@SET:kx`) | compliance | [k_ref/1000, k₀] |
 /// | each sensor node | an added point mass (a sensor's or cable's mass loading) | linear from 0 | [0, m_ref / 2] |
-/// | blocks sharing no node, 2 elements apart | a joint along x, y, z at their nearest nodes | from 0 | [0, 100 k_ref] |
+/// | blocks sharing no node, < 2 elements apart | a joint along x, y, z at nearest nodes | from 0 | [0, 100 k_ref] |
 ///
 /// k_ref is the stiffness of a node in the adjoining block, \f$E h\f$ (E Young's modulus, h the
 /// element size), or for a joint's absent rotational component its translational stiffness (the
