@@ -293,6 +293,14 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   // Its report still serves as --params for the problem without the effect.
   EXPECT_EQ(RunCli("compare " + study + " --params " + dir + "/added.json").exit_code, 0);
 
+  // The same through an effect the problem file enables.
+  const std::string enabled = WriteTempFile(
+      "enabled.yaml", std::string(kSensedBar) +
+                          "measured: {file: data.yaml}\neffects:\n  - {effect: \"point_mass@tip:mass\", enable: true}\n");
+  run = RunCli("calibrate " + enabled + " --method reduced-lbfgs --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("(added: mass of point mass added_mass_tip)"), std::string::npos) << run.output;
+
   run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --add bar.nosuch");
   EXPECT_EQ(run.exit_code, 2) << run.output;
   EXPECT_NE(run.output.find("--add: effect 'bar.nosuch'"), std::string::npos) << run.output;
