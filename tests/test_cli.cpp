@@ -233,6 +233,67 @@ options:
   num_modes: 6
 )";
 
+TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
+  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  ASSERT_EQ(RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 --noise-freq 0.002 " +
+                   "--noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml")
+                .exit_code,
+            0);
+  const std::string study = WriteTempFile("study.yaml", std::string(kSensedBar) + "measured: {file: data.yaml}\n");
+  CliRun run = RunCli("diagnose " + study + " --quiet --json " + dir + "/diagnose.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const char* part : {"residual test: chi-square", "where the model fails", "which effect is missing",
+                           "Add added_mass_tip.mass", "hidden effect added_mass_tip.mass: ranked 1"})
+    EXPECT_NE(run.output.find(part), std::string::npos) << part << "\n" << run.output;
+  const nlohmann::json d = nlohmann::json::parse(ReadFile(dir + "/diagnose.json"));
+  EXPECT_EQ(d["model_form_error"], true);
+  ASSERT_GE(d["ranking"].size(), 3u);
+  const nlohmann::json& first = d["ranking"][0];
+  for (const char* key : {"name", "description", "predicted_reduction", "achieved_reduction", "value", "significant"})
+    EXPECT_TRUE(first.contains(key)) << key;
+  EXPECT_EQ(first["name"], "added_mass_tip.mass");
+  EXPECT_EQ(first["significant"], true);
+  EXPECT_NEAR(first["value"].get<double>(), 0.05, 0.005);
+  EXPECT_TRUE(d["ranking"].back()["achieved_reduction"].is_null());  // not refitted
+  EXPECT_EQ(d["residual_before"]["model_form_error"], true);
+  EXPECT_EQ(d["residual_after"]["model_form_error"], false);
+  EXPECT_LT(d["residual_after"]["statistic"].get<double>(), d["residual_before"]["statistic"].get<double>());
+  EXPECT_EQ(d["hidden_effect"][0]["name"], "added_mass_tip.mass");
+  EXPECT_EQ(d["hidden_effect_rank"][0]["rank"], 1);
+  EXPECT_EQ(d["recommended"], "added_mass_tip.mass");
+  EXPECT_EQ(RunCli("compare " + study + " --params " + dir + "/diagnose.json").exit_code, 0);  // its calibration
+
+  // The engineer adds it: calibrate again with it, before and after side by side.
+  run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --add point_mass@tip:mass --json " + dir +
+               "/added.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const char* part : {"--- before and after adding the effects", "without [Hz]", "with [Hz]",
+                           "(added: mass of point mass added_mass_tip)", "without: chi-square", "with: chi-square"})
+    EXPECT_NE(run.output.find(part), std::string::npos) << part << "\n" << run.output;
+  const nlohmann::json a = nlohmann::json::parse(ReadFile(dir + "/added.json"));
+  ASSERT_EQ(a["effects"].size(), 1u);
+  EXPECT_EQ(a["effects"][0]["name"], "added_mass_tip.mass");
+  EXPECT_NEAR(a["effects"][0]["value"].get<double>(), 0.05, 0.005);
+  EXPECT_EQ(a["residual_before"]["model_form_error"], true);
+  EXPECT_EQ(a["residual_after"]["model_form_error"], false);
+  // Its report still serves as --params for the problem without the effect.
+  EXPECT_EQ(RunCli("compare " + study + " --params " + dir + "/added.json").exit_code, 0);
+
+  // The same through an effect the problem file enables.
+  const std::string enabled = WriteTempFile(
+      "enabled.yaml", std::string(kSensedBar) +
+                          "measured: {file: data.yaml}\neffects:\n  - {effect: \"point_mass@tip:mass\", enable: true}\n");
+  run = RunCli("calibrate " + enabled + " --method reduced-lbfgs --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("(added: mass of point mass added_mass_tip)"), std::string::npos) << run.output;
+
+  run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --add bar.nosuch");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("--add: effect 'bar.nosuch'"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("no property 'nosuch'"), std::string::npos) << run.output;
+}
+
 TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
   const std::string dir = std::filesystem::path(nominal).parent_path().string();

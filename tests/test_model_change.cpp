@@ -100,6 +100,7 @@ TEST(ModelChange, ParsesEveryFormAndPrintsItBack) {
   EXPECT_EQ(again.places[1].point, c.places[1].point);
 
   EXPECT_EQ(parse_model_change("spring@base:kz=1e7").kind, ModelChange::Kind::AddSpring);
+  EXPECT_EQ(to_string(parse_model_change("support@base:kx=1e8")), "support@base:kx=1e+08");
   EXPECT_EQ(parse_model_change("foam.stiffness_scale=0.6").property, "stiffness_scale");
 }
 
@@ -200,6 +201,38 @@ TEST(ModelChange, SpringsJointsAndPointsNameTheirNodes) {
   EXPECT_NE(p.description.find("nearest to [0.1,0.01,0]"), std::string::npos) << p.description;
 }
 
+TEST(ModelChange, FlexibleSupportReplacesAFixityBySprings) {
+  const Model nominal = LoadBar();
+  Model model = nominal;
+  const ModelEffect e = apply_model_change(&model, parse_model_change("support@root:kx=1e6"));
+  EXPECT_EQ(e.name, "support_root.kx");
+  EXPECT_TRUE(std::isinf(e.nominal_value));  // the nodes were fixed: rigid
+  EXPECT_EQ(e.description.rfind("flexible support along x at node set root", 0), 0u) << e.description;
+  ASSERT_EQ(model.ground_springs.size(), 1u);
+  EXPECT_TRUE(model.ground_springs[0].replaces_fixity);
+  // x of the root is now free (held by the springs), y and z stay fixed.
+  const DofMap before(nominal), after(model);
+  const int root_node = nominal.find_node_set("root")->nodes.front();
+  EXPECT_EQ(before.free_index(root_node, 0), -1);
+  EXPECT_GE(after.free_index(root_node, 0), 0);
+  EXPECT_EQ(after.free_index(root_node, 1), -1);
+  // A stiff support is nearly rigid and a soft one lowers the axial frequency; bending is unchanged
+  // to first order (the bar's first modes bend).
+  Model stiff = nominal, soft = nominal;
+  apply_model_change(&stiff, parse_model_change("support@root:kx=1e7"));
+  apply_model_change(&soft, parse_model_change("support@root:kx=200"));
+  const Vector f = Frequencies(nominal, 6), fs = Frequencies(stiff, 6), fw = Frequencies(soft, 6);
+  EXPECT_LT(((fs - f).array() / f.array()).abs().maxCoeff(), 1e-3);
+  EXPECT_LT(fw.minCoeff(), f.minCoeff());
+  // Recorded as a hidden effect with a rigid nominal, and in words.
+  const std::vector<ModelEffect> d = property_differences(nominal, model);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_TRUE(std::isinf(d[0].nominal_value));
+  EXPECT_EQ(d[0].description, "stiffness along x of flexible support support_root");
+  EXPECT_TRUE(std::isinf(absent_property_value(model, "support_root.ky")));
+  EXPECT_EQ(absent_property_value(model, "bar.stiffness_scale"), 1.0);
+}
+
 TEST(ModelChange, ErrorsNameTheItemAndLikelyCause) {
   ExpectChangeError("nosuch.kx=1", {"change 'nosuch.kx=1'", "unknown entity 'nosuch'",
                                     "known blocks, joints, springs and point masses: bar, link, weight"});
@@ -215,6 +248,8 @@ TEST(ModelChange, ErrorsNameTheItemAndLikelyCause) {
   ExpectChangeError("joint@tip/#1:kx=1", {"a joint connects two nodes", "node set 'tip' has"});
   ExpectChangeError("joint@#1:kx=1", {"joint takes 2 places"});
   ExpectChangeError("joint@#1/#1:kx=1", {"both ends of the joint are node 1"});
+  ExpectChangeError("support@tip:kx=1", {"of node set tip (on each of its", "is not fixed along x", "spring@"});
+  ExpectChangeError("support@root:kx=0", {"must be positive"});
 }
 
 TEST(ModelChange, PropertyDifferencesListWhatChangedExceptTheExcluded) {

@@ -85,6 +85,24 @@ TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
   }
 }
 
+TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {
+  const Problem problem = LoadModel();
+  ObjectiveOptions direct_options, adjoint_options;
+  direct_options.jacobian = ObjectiveOptions::Jacobian::DirectSensitivities;
+  adjoint_options.jacobian = ObjectiveOptions::Jacobian::SensorAdjoint;
+  Objective direct(problem, direct_options), adjoint(problem, adjoint_options);
+  const Vector p = problem.initial_values();
+  const Evaluation a = direct.evaluate(p, Need::Jacobian), b = adjoint.evaluate(p, Need::Jacobian);
+  ASSERT_TRUE(a.ok && b.ok) << a.message << b.message;
+  EXPECT_LT(testing::RelativeDifference(b.jacobian, a.jacobian), 1e-8);
+  // Automatic picks the sensor adjoint only when parameters outnumber sensor readings.
+  Objective automatic(problem);
+  const Evaluation c = automatic.evaluate(p, Need::Jacobian);
+  ASSERT_TRUE(c.ok) << c.message;
+  const bool more_parameters = p.size() > static_cast<int>(problem.sensors.size());
+  EXPECT_EQ(c.linear_solves, more_parameters ? b.linear_solves : a.linear_solves);
+}
+
 TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   const Problem problem = LoadModel();
   ObjectiveOptions options;

@@ -861,5 +861,107 @@ joints:
                      {"joint 'weld'", "rotations"});
 }
 
+// ---------------------------------------------------------------------------- extends, noise, effects
+
+TEST(LoadProblem, ExtendsChainsTakeEachSectionFromTheNearestFile) {
+  const fs::path dir = fs::temp_directory_path() / "modalcal_test_problem" / "chain";
+  fs::create_directories(dir / "sub");
+  std::ofstream(dir / "model.yaml") << kCube << "options: {num_modes: 4}\n";
+  std::ofstream(dir / "sub" / "middle.yaml") << "extends: ../model.yaml\noptions: {num_modes: 5}\n"
+                                                "parameters:\n  E: {targets: [steel.E], initial: 2.0e11, lower: 1.0e11, upper: 3.0e11}\n";
+  std::ofstream(dir / "top.yaml") << "extends: sub/middle.yaml\nname: top\noptions: {num_modes: 6}\n";
+  const Problem top = load_problem((dir / "top.yaml").string());
+  EXPECT_EQ(top.name, "top");
+  EXPECT_EQ(top.options.num_modes, 6);           // its own
+  EXPECT_EQ(top.parameters.size(), 1u);          // from the middle file
+  EXPECT_EQ(top.model.num_elements(), 8);        // from the model file, two levels up
+  EXPECT_EQ(load_problem((dir / "sub" / "middle.yaml").string()).options.num_modes, 5);
+  // A loop is an error at the line that closes it.
+  std::ofstream(dir / "a.yaml") << "extends: b.yaml\n";
+  std::ofstream(dir / "b.yaml") << "name: b\nextends: a.yaml\n";
+  try {
+    load_problem((dir / "a.yaml").string());
+    ADD_FAILURE() << "expected a ProblemError";
+  } catch (const ProblemError& e) {
+    EXPECT_EQ(e.file(), (dir / "b.yaml").string());
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_NE(std::string(e.what()).find("loop"), std::string::npos) << e.what();
+  }
+}
+
+TEST(LoadProblem, MeasuredModesStateTheirNoise) {
+  const Problem p = load_problem(WriteProblem(kCube + R"(
+measured:
+  modes:
+    - {frequency_hz: 100}
+  noise: {frequency: 0.002, shape: 0.02}
+)"));
+  ASSERT_TRUE(p.measurement_noise);
+  EXPECT_EQ(p.measurement_noise->frequency, 0.002);
+  EXPECT_EQ(p.measurement_noise->shape, 0.02);
+}
+
+TEST(ProblemErrors, NoiseOutOfRange) {
+  ExpectProblemError(kCube + R"(
+measured:
+  modes:
+    - {frequency_hz: 100}
+  noise: {frequency: 0.5}   # <-
+)",
+                     {"noise.", "frequency"});
+}
+
+const std::string kCubeOnASupport = kCube + R"(
+node_sets:
+  bottom: {box: {min: [0, 0, 0], max: [1, 1, 0]}}
+  top: {box: {min: [0, 0, 1], max: [1, 1, 1]}}
+fixed:
+  - {node_set: bottom, dofs: [x, y, z]}
+)";
+
+TEST(LoadProblem, DeclaredEffectsAreReadInOrder) {
+  const std::string text = kCubeOnASupport + R"(
+effects:
+  - {effect: "point_mass@top:mass", upper: 10, description: cables on the top}
+  - {effect: steel.stiffness_scale, initial: 0.9, lower: 0.5, upper: 2, enable: true}
+  - {effect: "support@bottom:kz"}
+)";
+  const Problem p = load_problem(WriteProblem(text));
+  ASSERT_EQ(p.effects.size(), 3u);
+  EXPECT_EQ(p.effects[0].effect, "point_mass@top:mass");
+  EXPECT_EQ(p.effects[0].description, "cables on the top");
+  EXPECT_FALSE(p.effects[0].enable);
+  EXPECT_FALSE(p.effects[0].lower);
+  EXPECT_EQ(*p.effects[0].upper, 10);
+  EXPECT_TRUE(p.effects[1].enable);
+  EXPECT_EQ(*p.effects[1].initial, 0.9);
+  EXPECT_EQ(p.effects[2].source_line, LineContaining(text, "support@bottom:kz"));
+}
+
+TEST(ProblemErrors, DeclaredEffectMustApplyToTheModel) {
+  ExpectProblemError(kCubeOnASupport + R"(
+effects:
+  - {effect: "support@top:kx"}   # <-
+)",
+                     {"effect 1", "is not fixed along x", "without its value"});
+  ExpectProblemError(kCubeOnASupport + R"(
+effects:
+  - {effect: "steel.stiffness_scale=2"}   # <-
+)",
+                     {"without its value", "'initial'"});
+  ExpectProblemError(kCubeOnASupport + R"(
+parameters:
+  E: {targets: [steel.E], initial: 2.0e11, lower: 1.0e11, upper: 3.0e11}
+effects:
+  - {effect: "steel.E"}   # <-
+)",
+                     {"steel.E", "parameter 'E' already calibrates"});
+  ExpectProblemError(kCubeOnASupport + R"(
+effects:
+  - {effect: "steel.mass_scale", initial: 3, upper: 2}   # <-
+)",
+                     {"initial 3 lies outside its bounds"});
+}
+
 }  // namespace
 }  // namespace modalcal

@@ -131,6 +131,26 @@ TEST(Reduced, UnevaluableStartEndsWithStatusAndReason) {
   EXPECT_NE(s.message.find("indefinite"), std::string::npos) << s.message;
 }
 
+TEST(Reduced, FunctionToleranceStopsWhenTheObjectiveStopsMoving) {
+  // A measured frequency the model cannot meet exactly (the first mode's shape is measured on the
+  // wrong mass): the misfit stays positive, and the run ends when it stops falling.
+  Problem problem = TwoOscillators(4.0e4, 1.0e4, 1.0e3, 2.0e4);
+  problem.measured[0].shape << 1.0, 0.3;
+  Objective objective(problem);
+  ReducedOptions options;
+  options.function_tolerance = 1e-6;
+  const ReducedSummary s = minimize_reduced(objective, problem.initial_values(), options);
+  ASSERT_TRUE(s.converged()) << s.FullReport();
+  EXPECT_NE(s.message.find("lowered the objective by"), std::string::npos) << s.message;
+  const IterationRecord& last = s.history.back();
+  const IterationRecord& before = s.history[s.history.size() - 2];
+  EXPECT_LE(before.objective - last.objective, 1e-6 * std::max(1.0, last.objective));
+  options.function_tolerance = 1.5;
+  std::string error;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("function_tolerance"), std::string::npos) << error;
+}
+
 TEST(Reduced, OptionsAreValidatedNamingTheField) {
   ReducedOptions options;
   options.memory = 0;

@@ -76,6 +76,9 @@ struct Joint {
 struct GroundSpring {
   std::string name;
   std::vector<int> nodes;
+  /// A flexible support: the springs stand where the nodes were fixed (`support@SET:kx=...`,
+  /// model_change.hpp), so an absent component means rigidly held, not free.
+  bool replaces_fixity = false;
   std::array<PropertyId, 6> stiffness{kNoProperty, kNoProperty, kNoProperty,
                                       kNoProperty, kNoProperty, kNoProperty};
 };

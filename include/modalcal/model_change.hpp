@@ -7,7 +7,7 @@
 ///
 /// Every change sets one property and has a canonical name in the dotted `<entity>.<property>`
 /// form of calibration parameter targets (`joint2.krx`, `added_mass_top.mass`,
-/// `added_spring_base.kz`) and a description in words. Four kinds, written as compact strings:
+/// `added_spring_base.kz`) and a description in words. Five kinds, written as compact strings:
 ///
 /// | kind | text | name |
 /// |---|---|---|
@@ -15,13 +15,14 @@
 /// | add a point mass | `point_mass@top:mass=0.05`, `point_mass@#17:mass=1`, `point_mass@[0.2,0,0.55]:Ixx=1e-4` | `added_mass_top.mass` |
 /// | add springs to ground | `spring@base:kz=1e7` | `added_spring_base.kz` |
 /// | add a joint | `joint@#17/#42:kx=1e6`, `joint@[0,0,1]/[0,0,1.01]:krx=10` | `added_joint_node17_node42.kx` |
+/// | make a support flexible | `support@post_bottom:kx=6e6` | `support_post_bottom.kx` |
 ///
 /// Grammar (spaces around the tokens are allowed):
 /// \code{.unparsed}
 /// change   := setting | addition
 /// setting  := ENTITY "." PROPERTY "=" NUMBER
 /// addition := KIND "@" PLACE ["/" PLACE] ":" PROPERTY "=" NUMBER
-/// KIND     := point_mass | spring | joint       (joint takes two places, the others one)
+/// KIND     := point_mass | spring | joint | support   (joint takes two places, the others one)
 /// PLACE    := NODE_SET | "#" NODE_ID | "[" X "," Y "," Z "]"    (the last: the node nearest the point)
 /// \endcode
 ///
@@ -31,6 +32,10 @@
 /// - A point mass or spring placed on a node set acts at *each* of its nodes (as `springs:` in a
 ///   problem file does); properties mass, Ixx, Iyy, Izz for a point mass, kx..krz for springs and
 ///   joints, in global directions. A joint's places must each be one node.
+/// - A support change releases the fixity of every node of the place along the component and
+///   puts a spring to ground of the given (positive) stiffness there instead, one per node: a
+///   support that gives. Every node must be fixed along that component. Its nominal value is
+///   +infinity (rigid; `.inf` in data files, null in JSON).
 /// - Additions at the same place and of the same kind build up one entity:
 ///   `spring@base:kx=1e6` then `spring@base:ky=1e6` give one spring with two components.
 ///
@@ -60,7 +65,7 @@ struct NodePlace {
 };
 
 struct ModelChange {
-  enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint };
+  enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint, FlexibleSupport };
   Kind kind = Kind::SetProperty;
   std::string entity;              ///< SetProperty: the block, joint, spring or point mass
   std::vector<NodePlace> places;   ///< additions: one place, two for a joint
@@ -74,7 +79,9 @@ struct ModelEffect {
   std::string name;          ///< canonical `<entity>.<property>`, e.g. "added_mass_top.mass"
   std::string description;   ///< in words, e.g. "rotational stiffness about x of joint joint2"
   double value = 0;          ///< in the changed model
-  double nominal_value = 0;  ///< before the change: 0 for absent entities and components, 1 for absent scale factors
+  /// Before the change: 0 for absent entities and components, 1 for absent scale factors,
+  /// +infinity for a flexible support's stiffness (the nodes were fixed).
+  double nominal_value = 0;
 };
 
 /// Parses a change string (grammar above).
@@ -100,8 +107,13 @@ ModelEffect describe_model_change(const Model& model, const ModelChange& change)
 /// A name whose entity is unknown is returned as it is.
 std::string describe_property(const Model& model, const std::string& property_name);
 
+/// The value a property of `model` has when it is absent: 1 for a scale factor, +infinity for a
+/// component of a flexible support (GroundSpring::replaces_fixity), else 0. `property_name` is
+/// `<entity>.<property>`.
+double absent_property_value(const Model& model, const std::string& property_name);
+
 /// The properties of `changed` that are absent from `nominal` or have another value there, as
-/// effects (nominal_value 0 when absent, 1 for an absent scale factor), in `changed`'s order,
+/// effects (nominal_value as absent_property_value when absent), in `changed`'s order,
 /// except those named in `excluded` (e.g. the calibration parameters' targets).
 std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
                                               const std::vector<std::string>& excluded = {});

@@ -82,6 +82,20 @@ struct ObjectiveOptions {
   /// Two model eigenvalues closer than this (relative) are reported as (nearly) repeated.
   /// Range: (0, 1).
   double close_eigenvalue_tolerance = 1e-4;
+  /// How the shape rows of the residual Jacobian (Need::Jacobian) are computed. Both give the same
+  /// matrix; they differ in the linear solves, one right-hand side per column of the deflated
+  /// solve, per measured shape:
+  /// - `DirectSensitivities`: the eigenvector sensitivity \f$\partial u/\partial p_j\f$ of every
+  ///   parameter (n_p right-hand sides);
+  /// - `SensorAdjoint`: \f$Z = S P^T\f$, S the deflated inverse of \f$K - \lambda M\f$ (symmetric),
+  ///   one right-hand side per sensor reading, then
+  ///   \f$P\,\partial u/\partial p_j = -Z^T(K_{,j} - \lambda M_{,j})u - \tfrac12 (u^T M_{,j} u)\, P u\f$
+  ///   for all j in one pass over the assembly terms (n_s right-hand sides);
+  /// - `Automatic`: the cheaper of the two (sensor adjoint when there are more parameters than
+  ///   sensor readings, e.g. when ranking many candidate effects at once).
+  /// The Hessian (Need::Hessian) always needs the full sensitivities.
+  enum class Jacobian { Automatic, DirectSensitivities, SensorAdjoint };
+  Jacobian jacobian = Jacobian::Automatic;
   /// Scaling of the regularization variables; per parameter from the problem when unset.
   bool IsValid(std::string* error) const;
 };

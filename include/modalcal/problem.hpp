@@ -105,6 +105,21 @@ struct SyntheticTruth {
   std::vector<std::pair<std::string, double>> parameters;
 };
 
+/// A candidate effect the problem file declares (`effects:`): the diagnosis ranks it beside the
+/// candidates it generates from the model's structure (effects.hpp), and calibration adds it as a
+/// parameter when it is enabled. Unset numbers take the defaults of automatic candidates.
+struct DeclaredEffect {
+  /// A change without its value (model_change.hpp), e.g. "joint2.kry", "point_mass@[9,4,3.5]:mass",
+  /// "support@post_bottom:kx"; checked against the model at load time.
+  std::string effect;
+  std::string description;        ///< words for reports; empty: the change's own description
+  std::optional<double> initial;  ///< start of its calibration; unset: the first-order estimate
+  std::optional<double> lower, upper;
+  bool enable = false;            ///< calibrate with it (as `calibrate --add`)
+  std::string source_file;        ///< where it is declared, for messages
+  int source_line = 0;
+};
+
 struct Problem {
   std::string path;            ///< the file it came from
   std::string name, description;
@@ -124,8 +139,11 @@ struct Problem {
   /// The truth the measured modes came from, when known: a data file's `truth:` section, or for
   /// `measured: synthetic` the nominal model at the parameters' truth values (no hidden effect).
   std::optional<SyntheticTruth> synthetic_truth;
-  /// A data file's `noise:` section, when it has one.
+  /// The measurement noise: `measured: {noise: ...}` in the problem file, else a data file's
+  /// `noise:` section, when either has one.
   std::optional<MeasurementNoise> measurement_noise;
+  /// `effects:`: candidate effects declared for the diagnosis, in file order.
+  std::vector<DeclaredEffect> effects;
 
   std::vector<std::vector<PropertyId>> parameter_targets() const;
   Vector initial_values() const;

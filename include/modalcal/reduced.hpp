@@ -70,6 +70,10 @@ struct ReducedOptions {
   double gradient_tolerance = 1e-10;
   /// ... or below this times its initial value. Range: [0, 1).
   double relative_gradient_tolerance = 1e-12;
+  /// ... or when an iteration lowers J by at most this times max(|J|, 1) (as Ceres'
+  /// function_tolerance): the misfit has stopped moving even if its gradient has not reached the
+  /// tolerance (rounding in J, or a flat valley). 0 switches it off. Range: [0, 1).
+  double function_tolerance = 0;
   /// L-BFGS memory. Range: >= 1.
   int memory = 10;
   /// Use the parameters' bounds; without them only log scaling keeps p positive. 

@@ -72,6 +72,21 @@ struct ResidualTest {
 ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
                            int num_parameters, const ResidualTestOptions& options = {});
 
+/// A copy of `problem` whose objective weights make twice its misfit the statistic \f$X^2\f$ above
+/// (to first order), so that calibrating it is a maximum-likelihood fit under `noise`, as the
+/// likelihood-ratio tests of the effect ranking (effects.hpp) assume:
+/// \f$\beta_i = 1/(4\sigma_f^2)\f$ for a frequency, since
+/// \f$(\lambda - \lambda_m)/\lambda_m \approx 2(f - f_m)/f_m\f$, and
+/// \f$\kappa_i = \|\phi_{m,i}\|^2/(\sigma_s \max_k|\phi_{m,i,k}|)^2\f$ for a shape, since
+/// \f$\|e_i\|^2 = 1 - \mathrm{MAC}\f$ (the measured shape's largest entry stands in for the fitted
+/// one's). Terms switched off (weight 0) stay off; shape weights are kept when noise.shape is 0.
+/// \throws std::invalid_argument if noise.frequency is not positive or noise is invalid.
+Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise);
+
+/// The critical value c with \f$P(\chi^2_\nu > c) = \alpha\f$ (bisection on
+/// chi_square_upper_tail). Range: nu >= 1, alpha in (0, 1).
+double chi_square_critical_value(double alpha, int nu);
+
 /// Upper tail of the chi-square distribution, \f$P(\chi^2_\nu > x) = Q(\nu/2, x/2)\f$ (regularized
 /// upper incomplete gamma function). Range: nu >= 1, x >= 0.
 double chi_square_upper_tail(double x, int nu);

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -10,6 +11,8 @@
 #include "cli/calibration_report.hpp"
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "modalcal/diagnosis.hpp"
+#include "modalcal/effects.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/vtu.hpp"
@@ -37,6 +40,7 @@ struct CalibrateArgs {
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
+  std::vector<std::string> add;  // effects to add (change texts or candidate names)
 };
 
 Scaling parse_scaling(const std::string& name) {
@@ -58,20 +62,25 @@ void print_kkt(const KktRecord& r) {
                std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
 }
 
-int run_calibrate(const CalibrateArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
-  print_warnings(problem);
-  ObjectiveOptions objective_options;
-  objective_options.regularization = args.regularization;
-  Objective objective(problem, objective_options);
+/// One calibration of `objective` from p0 by the chosen method: its report and whether it has a
+/// usable result.
+struct Calibrated {
+  CalibrationReport report;
+  Vector final;
+  bool usable = false;
+};
+
+/// `chi_square`: the objective is noise-weighted, so the diagnosis' tolerances apply (its values
+/// are of the order of the number of data, and 1e-10 on the gradient would mean rounding).
+Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs& args, bool chi_square = false) {
+  const Problem& problem = objective.problem();
   const std::optional<Scaling> scaling =
       args.scaling.empty() ? std::nullopt : std::optional<Scaling>(parse_scaling(args.scaling));
-  const Vector p0 = choose_parameters(&problem, args.start) * args.start_factor;
   std::printf("%s: %d parameters, %zu measured modes, %d DOFs, method %s\n", problem.path.c_str(),
               objective.num_parameters(), problem.measured.size(), objective.system().num_dofs(), args.method.c_str());
   CalibrationReport report;
+  Vector final;
   bool usable = false;
-  Vector final_p;
   if (args.method == "fullspace") {
     if (args.no_bounds) throw InputError("--no-bounds: the full-space method always uses the parameters' bounds");
     FullSpaceOptions options;
@@ -89,9 +98,9 @@ int run_calibrate(const CalibrateArgs& args) {
     report = make_report(objective, summary.initial, summary.final);
     report.summary = summary_json(problem, summary);
     usable = summary.converged();
-    final_p = summary.final;
+    final = summary.final;
   } else {
-    ReducedOptions options;
+    ReducedOptions options = chi_square ? DiagnosisOptions::default_calibration_options() : ReducedOptions();
     options.method = parse_method(args.method);
     options.max_iterations = args.max_iterations;
     options.use_bounds = !args.no_bounds;
@@ -104,25 +113,115 @@ int run_calibrate(const CalibrateArgs& args) {
     // L-BFGS often ends on its line search at the rounding floor with a perfect fit: any end
     // with a final iterate is a result; the status in the report says how it ended.
     usable = summary.termination != TerminationType::ForwardSolveFailed && summary.final.size() > 0;
-    final_p = summary.final;
+    final = summary.final;
   }
   report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},
                      {"bounds", !args.no_bounds},
                      {"start_factor", args.start_factor},
                      {"regularization", args.regularization}};
-  std::fputs(report.text.c_str(), stdout);
-  write_json(args.json, report.json(), problem);
-  if (!args.vtu.empty() && usable) {
+  return {report, final, usable};
+}
+
+/// Calibrates without the effects, then with them (started from the first calibration and the
+/// effects' first-order values), and reports both side by side. With a stated noise both fits
+/// minimize the chi-square (noise_weighted), as diagnose does.
+int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::vector<EffectCandidate>& effects,
+                           const CalibrateArgs& args, const ObjectiveOptions& objective_options) {
+  const bool noise = problem.measurement_noise && problem.measurement_noise->frequency > 0;
+  const Problem fitted = noise ? noise_weighted(problem, *problem.measurement_noise) : problem;
+  if (noise) std::printf("fits weighted by the stated noise (chi-square)\n");
+  std::printf("--- without the added effects\n");
+  Objective objective(fitted, objective_options);
+  const Calibrated before = calibrate(objective, p0, args, noise);
+  std::fputs(before.report.text.c_str(), stdout);
+  if (!before.usable) {
+    std::fprintf(stderr, "error: the calibration without the effects has no usable result\n");
+    return 1;
+  }
+  // Start values: declared, else the first-order estimate at the first calibration.
+  RankingOptions screen;
+  screen.refits = 0;
+  screen.objective = objective_options;
+  const EffectRanking first_order = rank_effects(fitted, before.final, effects, screen);
+  std::vector<double> starts;
+  for (const EffectCandidate& c : effects) {
+    double start = c.variable == EffectCandidate::Variable::Compliance ? c.upper : c.screen_value;
+    for (const RankedEffect& r : first_order.effects)
+      if (r.candidate.name == c.name && r.predicted_reduction > 0) start = r.predicted_value;
+    starts.push_back(std::clamp(c.initial.value_or(start), c.lower, c.upper));
+  }
+  const Problem with = problem_with_effects(fitted, effects, starts);
+  Vector p1(with.parameters.size());
+  p1 << before.final, Eigen::Map<const Vector>(starts.data(), static_cast<Eigen::Index>(starts.size()));
+  std::printf("\n--- with");
+  for (size_t k = 0; k < effects.size(); ++k)
+    std::printf(" %s (%s, from %.4g)", effects[k].name.c_str(), effects[k].description.c_str(), starts[k]);
+  std::printf("\n");
+  Objective with_objective(with, objective_options);
+  Calibrated after = calibrate(with_objective, p1, args, noise);
+  std::fputs(after.report.text.c_str(), stdout);
+  if (!after.usable) {
+    std::fprintf(stderr, "error: the calibration with the effects has no usable result\n");
+    return 1;
+  }
+  const FitState fit_before = evaluate_fit(fitted, before.final), fit_after = evaluate_fit(with, after.final);
+  std::printf("\n--- before and after adding the effects\n%s",
+              format_before_after(with, fit_before, fit_after, "without", "with").c_str());
+  nlohmann::json json = after.report.json();
+  for (auto& entry : json["parameters"])
+    for (const EffectCandidate& c : effects)
+      if (entry["name"] == c.name) entry["effect"] = true;
+  json["effects"] = nlohmann::json::array();
+  for (size_t k = 0; k < effects.size(); ++k)
+    json["effects"].push_back({{"name", effects[k].name},
+                               {"description", effects[k].description},
+                               {"start", starts[k]},
+                               {"value", after.final[p0.size() + k]}});
+  json["before"] = before.report.json();
+  auto residual = [](const FitState& fit) {
+    nlohmann::json r = {{"statistic", fit.statistic}};
+    if (fit.test)
+      r.update({{"dof", fit.test->dof}, {"p_value", fit.test->p_value}, {"model_form_error", fit.test->model_form_error},
+                {"verdict", fit.test->verdict}});
+    return r;
+  };
+  json["residual_before"] = residual(fit_before);
+  json["residual_after"] = residual(fit_after);
+  write_json(args.json, json, problem);
+  return 0;
+}
+
+int run_calibrate(const CalibrateArgs& args) {
+  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  print_warnings(problem);
+  ObjectiveOptions objective_options;
+  objective_options.regularization = args.regularization;
+  const Vector p0 = choose_parameters(&problem, args.start) * args.start_factor;
+  std::vector<EffectCandidate> effects = enabled_candidates(problem);
+  for (const std::string& text : args.add) {
+    try {
+      effects.push_back(make_candidate(problem, text));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--add: ") + e.what());
+    }
+  }
+  if (!effects.empty()) return calibrate_with_effects(problem, p0, effects, args, objective_options);
+  Objective objective(problem, objective_options);
+  const Calibrated result = calibrate(objective, p0, args);
+  std::fputs(result.report.text.c_str(), stdout);
+  write_json(args.json, result.report.json(), problem);
+  if (!args.vtu.empty() && result.usable) {
     // The calibrated model for ParaView: blocks with their calibrated properties, the computed
     // modes at the final parameters, and the measured shapes at the sensors.
-    const Evaluation at_final = objective.evaluate(final_p, Need::Value);
+    const Evaluation at_final = objective.evaluate(result.final, Need::Value);
     if (!at_final.ok) throw std::runtime_error("--vtu: forward solve at the final parameters failed: " + at_final.message);
     VtuFields fields;
     add_mode_fields(at_final.modal, -1, &fields);
-    for (const std::string& path : write_vtu_set(args.vtu, "calibrated", problem, objective.system(), final_p, fields))
+    for (const std::string& path :
+         write_vtu_set(args.vtu, "calibrated", problem, objective.system(), result.final, fields))
       std::printf("wrote %s\n", path.c_str());
   }
-  return usable ? 0 : 1;
+  return result.usable ? 0 : 1;
 }
 
 }  // namespace
@@ -147,6 +246,10 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")->check(CLI::PositiveNumber);
   cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--add", args->add,
+                  "calibrate again with this effect added and show before and after: a change without its value "
+                  "(joint2.kry, point_mass@top:mass, support@post_bottom:kx), with a start value (joint2.kry=1e5), "
+                  "or a candidate's name from diagnose (repeatable)");
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")

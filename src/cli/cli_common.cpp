@@ -1,5 +1,6 @@
 #include "cli/cli_common.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -38,6 +39,7 @@ Vector from_report(const Problem& problem, const std::string& path) {
   Vector p = problem.initial_values();
   std::vector<bool> seen(p.size(), false);
   for (const auto& entry : report["parameters"]) {
+    if (entry.value("effect", false)) continue;  // added by calibrate --add: not a parameter of the problem
     const std::string name = entry.value("name", "");
     const int j = problem.find_parameter(name);
     if (j < 0) throw InputError(path + ": parameter '" + name + "' is not in the problem " + problem.path);
@@ -127,7 +129,10 @@ std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& r
   if (truth.hidden_effects.empty()) text += "hidden effect: none (the nominal model form is right)\n";
   char line[64];
   for (const ModelEffect& e : truth.hidden_effects) {
-    std::snprintf(line, sizeof line, " = %.6g (nominal %.6g): ", e.value, e.nominal_value);
+    if (std::isinf(e.nominal_value))
+      std::snprintf(line, sizeof line, " = %.6g (nominal rigid): ", e.value);
+    else
+      std::snprintf(line, sizeof line, " = %.6g (nominal %.6g): ", e.value, e.nominal_value);
     text += "hidden effect: " + e.name + line + e.description + "\n";
   }
   if (!truth.other_differences.empty()) text += "other differences: " + truth.other_differences + "\n";
@@ -141,6 +146,20 @@ std::string hidden_effect_text(const Problem& problem) {
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
   if (path.empty()) return;
   write_file_atomically(path, json.dump(2) + "\n", {problem.path});
+}
+
+VtuFields localization_fields(const Problem& problem, const Localization& result) {
+  VtuFields fields;
+  int highest = problem.options.num_modes;
+  for (const ExpandedMode& m : result.modes) highest = std::max(highest, m.model_mode + 1);
+  add_mode_fields(result.modal, highest, &fields);
+  for (const ExpandedMode& m : result.modes)
+    fields.shapes.push_back({shape_field_name("expanded", m.measured + 1, m.measured_hz), m.measured_hz, m.shape});
+  const Vector& element = result.element_indicator;
+  fields.element_data.push_back({"error_indicator", 1, std::vector<double>(element.data(), element.data() + element.size())});
+  const Vector node = result.total_energy > 0 ? Vector(result.node_energy / result.total_energy) : result.node_energy;
+  fields.node_data.push_back({"residual_energy_share", 1, std::vector<double>(node.data(), node.data() + node.size())});
+  return fields;
 }
 
 }  // namespace modalcal::cli

@@ -7,8 +7,10 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/localization.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/vtu.hpp"
 
 namespace modalcal::cli {
 
@@ -42,6 +44,10 @@ void write_json(const std::string& path, const nlohmann::json& json, const Probl
 /// measured modes came from is known (an empty list: the nominal model form is right), and
 /// `other_differences` when the truth differs in more than properties.
 void add_hidden_effect(const Problem& problem, nlohmann::json* json);
+
+/// The VTU fields of a localization: the model's modes, the expanded measured shapes, the element
+/// indicator and each node's share of the residual energy (localize and diagnose --vtu).
+VtuFields localization_fields(const Problem& problem, const Localization& result);
 
 /// The same for people: "hidden effect: NAME = VALUE (nominal N): DESCRIPTION" lines, or "" when
 /// the truth is unknown.

@@ -13,4 +13,5 @@ void register_study_command(CLI::App& app, int* exit_code);
 void register_import_test_data_command(CLI::App& app, int* exit_code);
 void register_synth_command(CLI::App& app, int* exit_code);
 void register_compare_command(CLI::App& app, int* exit_code);
+void register_diagnose_command(CLI::App& app, int* exit_code);
 }  // namespace modalcal::cli

@@ -56,20 +56,6 @@ nlohmann::json to_json(const Problem& problem, const Vector& p, const Localizati
   return json;
 }
 
-VtuFields localization_fields(const Problem& problem, const Localization& result) {
-  VtuFields fields;
-  int highest = problem.options.num_modes;
-  for (const ExpandedMode& m : result.modes) highest = std::max(highest, m.model_mode + 1);
-  add_mode_fields(result.modal, highest, &fields);
-  for (const ExpandedMode& m : result.modes)
-    fields.shapes.push_back({shape_field_name("expanded", m.measured + 1, m.measured_hz), m.measured_hz, m.shape});
-  const Vector& element = result.element_indicator;
-  fields.element_data.push_back({"error_indicator", 1, std::vector<double>(element.data(), element.data() + element.size())});
-  const Vector node = result.total_energy > 0 ? Vector(result.node_energy / result.total_energy) : result.node_energy;
-  fields.node_data.push_back({"residual_energy_share", 1, std::vector<double>(node.data(), node.data() + node.size())});
-  return fields;
-}
-
 int run_localize(const LocalizeArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   const Vector p = choose_parameters(&problem, args.params);

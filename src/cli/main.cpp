@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   modalcal::cli::register_synth_command(app, &exit_code);
   modalcal::cli::register_compare_command(app, &exit_code);
   modalcal::cli::register_localize_command(app, &exit_code);
+  modalcal::cli::register_diagnose_command(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

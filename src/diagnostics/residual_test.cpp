@@ -69,6 +69,35 @@ double chi_square_upper_tail(double x, int nu) {
   return h < a + 1 ? 1 - lower_gamma_series(a, h) : upper_gamma_fraction(a, h);
 }
 
+double chi_square_critical_value(double alpha, int nu) {
+  if (nu < 1 || !(alpha > 0 && alpha < 1))
+    throw std::invalid_argument("chi_square_critical_value: need nu >= 1 and alpha in (0, 1), got nu = " +
+                                std::to_string(nu) + ", alpha = " + std::to_string(alpha));
+  double lo = 0, hi = nu + 10.0;
+  while (chi_square_upper_tail(hi, nu) > alpha) hi *= 2;
+  for (int k = 0; k < 200 && hi - lo > 1e-12 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (chi_square_upper_tail(mid, nu) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise) {
+  std::string error;
+  if (!noise.IsValid(&error)) throw std::invalid_argument("noise_weighted: " + error);
+  if (!(noise.frequency > 0))
+    throw std::invalid_argument("noise_weighted: the frequency noise must be > 0 (state it under measured: noise:)");
+  Problem weighted = problem;
+  for (MeasuredMode& m : weighted.measured) {
+    if (m.weight > 0) m.weight = 1 / (4 * noise.frequency * noise.frequency);
+    if (m.shape_weight > 0 && m.shape.size() > 0 && noise.shape > 0) {
+      const double sigma = noise.shape * m.shape.cwiseAbs().maxCoeff();
+      m.shape_weight = m.shape.squaredNorm() / (sigma * sigma);
+    }
+  }
+  return weighted;
+}
+
 ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
                            int num_parameters, const ResidualTestOptions& options) {
   const Problem& problem = objective.problem();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 #include <stdexcept>
 
 #include "diagnostics/standard_normal.hpp"
@@ -29,6 +30,21 @@ double model_size(const Model& model) {
   return (hi - lo).norm();
 }
 
+/// (node, component) of every fixed DOF and of every DOF a flexible support holds.
+std::set<std::pair<int, int>> fixed_or_supported(const Model& model) {
+  std::set<std::pair<int, int>> dofs;
+  for (const FixedDofs& f : model.fixed)
+    for (int c = 0; c < 6; ++c)
+      if (f.components[c])
+        for (int v : f.nodes) dofs.insert({v, c});
+  for (const GroundSpring& s : model.ground_springs)
+    if (s.replaces_fixity)
+      for (int c = 0; c < 6; ++c)
+        if (s.stiffness[c] != kNoProperty)
+          for (int v : s.nodes) dofs.insert({v, c});
+  return dofs;
+}
+
 /// What distinguishes two models beyond their properties, in words.
 std::string structural_differences(const Model& nominal, const Model& truth) {
   std::vector<std::string> notes;
@@ -46,9 +62,8 @@ std::string structural_differences(const Model& nominal, const Model& truth) {
       for (const ElementBlock& b : truth.blocks)
         if (a.name == b.name && (a.connectivity != b.connectivity || a.type != b.type))
           notes.push_back("the elements of block " + a.name + " differ");
-    auto same_fixed = [](const FixedDofs& a, const FixedDofs& b) { return a.nodes == b.nodes && a.components == b.components; };
-    if (!std::equal(nominal.fixed.begin(), nominal.fixed.end(), truth.fixed.begin(), truth.fixed.end(), same_fixed))
-      notes.push_back("the fixed DOFs differ");
+    // A flexible support's springs stand for the fixity they released: that is a property.
+    if (fixed_or_supported(nominal) != fixed_or_supported(truth)) notes.push_back("the fixed DOFs differ");
     auto same_coupling = [](const RigidCoupling& a, const RigidCoupling& b) {
       return a.reference == b.reference && a.nodes == b.nodes;
     };

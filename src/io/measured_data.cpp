@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <sstream>
 
 #include "modalcal/output.hpp"
@@ -29,7 +30,7 @@ void write_truth(std::ostream& out, const SyntheticTruth& truth) {
       << "\n";
   for (const ModelEffect& e : truth.hidden_effects)
     out << "    - {name: " << quoted(e.name) << ", description: " << quoted(e.description) << ", value: " << number(e.value)
-        << ", nominal_value: " << number(e.nominal_value) << "}\n";
+        << ", nominal_value: " << (std::isinf(e.nominal_value) ? std::string(".inf") : number(e.nominal_value)) << "}\n";
   if (!truth.other_differences.empty()) out << "  other_differences: " << quoted(truth.other_differences) << "\n";
   out << "  parameters:" << (truth.parameters.empty() ? " {}" : "") << "\n";
   for (const auto& [name, value] : truth.parameters) out << "    " << quoted(name) << ": " << number(value) << "\n";

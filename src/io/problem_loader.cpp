@@ -131,8 +131,9 @@ class Loader {
   Loader(const std::string& path, const LoadOptions& options, Problem& problem)
       : path_(path), current_file_(path), options_(options), problem_(problem), model_(problem.model) {}
 
-  /// Reads `root`; sections it lacks come from `base` (the file named by `extends`).
-  void load(const YAML::Node& root, const YAML::Node& base, const std::string& base_path);
+  /// Reads `root`; sections it lacks come from the files it extends (`bases`, nearest first:
+  /// the file `extends` names, then the one that file extends, ...).
+  void load(const YAML::Node& root, const std::vector<std::pair<YAML::Node, std::string>>& bases);
 
  private:
   [[noreturn]] void fail_at(int line, const std::string& what, const std::string& message) const {
@@ -180,6 +181,7 @@ class Loader {
   void read_sensors(const Field& f);
   void read_options(const Field& f);
   void read_measured(const Field& f);
+  void read_effects(const Field& f);
   void read_measured_file(const Field& f);
   void read_data_sensors(const Field& f);
   SyntheticTruth recorded_truth(const Field& f);
@@ -355,11 +357,11 @@ int Loader::choice(const Field& f, const std::vector<std::string>& options) cons
   fail(f, "expected one of " + join(options) + " for " + f.name() + ", got " + quote(value));
 }
 
-void Loader::load(const YAML::Node& root, const YAML::Node& base, const std::string& base_path) {
+void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node, std::string>>& bases) {
   const std::vector<std::string> keys = {
       "name", "description", "units", "extends", "mesh", "blocks", "node_sets", "reference_nodes",
       "rigid_couplings", "joints", "springs", "point_masses", "fixed", "mode_families",
-      "parameters", "sensors", "measured", "options"};
+      "parameters", "sensors", "measured", "options", "effects"};
   auto sections_of = [&](const YAML::Node& node) {
     if (!node.IsMap())
       fail_at(1, "", "expected a map of the problem's sections (mesh, blocks, ...), got " + describe(node));
@@ -369,13 +371,11 @@ void Loader::load(const YAML::Node& root, const YAML::Node& base, const std::str
   // A section the file itself gives replaces the base file's whole section.
   std::map<std::string, std::string> file_of;
   for (const Field& f : top.items) file_of[f.key] = path_;
-  if (!base_path.empty()) {
+  for (const auto& [base, base_path] : bases) {
     current_file_ = base_path;
     const Fields inherited = sections_of(base);
-    if (inherited.find("extends"))
-      fail(*inherited.find("extends"), "a file that is extended may not itself extend another");
     for (const Field& f : inherited.items)
-      if (!top.find(f.key) && f.key != "name" && f.key != "description") {
+      if (!top.find(f.key) && f.key != "name" && f.key != "description" && f.key != "extends") {
         top.items.push_back(f);
         file_of[f.key] = base_path;
       }
@@ -419,6 +419,11 @@ void Loader::load(const YAML::Node& root, const YAML::Node& base, const std::str
   } catch (const std::invalid_argument& e) {
     const Location at = location_of_model_error(e.what());
     throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
+  }
+  // Effects act on the finished model.
+  if (const Field* f = top.find("effects")) {
+    enter(*f);
+    read_effects(*f);
   }
 }
 
@@ -919,21 +924,61 @@ void Loader::read_options(const Field& f) {
 }
 
 void Loader::read_measured(const Field& f) {
-  const Fields fs = map_of(f, "measured", {"modes", "synthetic", "test_data", "file"});
+  const Fields fs = map_of(f, "measured", {"modes", "synthetic", "test_data", "file", "noise"});
   const Field& which = exactly_one(fs, {"modes", "synthetic", "test_data", "file"});
   if (which.key == "synthetic") {
     problem_.synthetic = synthetic(which);
-    return;
-  }
-  if (which.key == "test_data") {
+  } else if (which.key == "test_data") {
     detail::measured_from_test_data(test_data(which), &problem_);
-    return;
-  }
-  if (which.key == "file") {
+  } else if (which.key == "file") {
     read_measured_file(which);
-    return;
+  } else {
+    for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item, false));
   }
-  for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item, false));
+  // The noise stated here replaces what a data file records.
+  if (const Field* noise = fs.find("noise")) problem_.measurement_noise = recorded_noise(*noise);
+}
+
+void Loader::read_effects(const Field& f) {
+  for (const Field& item : list(f)) {
+    const std::string what = "effect " + std::to_string(item.item);
+    const Fields fs = map_of(item, what, {"effect", "description", "initial", "lower", "upper", "enable"});
+    DeclaredEffect effect;
+    const Field& text_field = required(fs, "effect");
+    effect.effect = text(text_field);
+    if (effect.effect.find('=') != std::string::npos)
+      fail(text_field, "'" + effect.effect + "': give the effect without its value (e.g. joint2.kry); its start "
+                       "value is 'initial'");
+    effect.source_file = current_file_;
+    effect.source_line = item.line;
+    if (const Field* d = fs.find("description")) effect.description = text(*d);
+    if (const Field* v = fs.find("initial")) effect.initial = number(*v);
+    if (const Field* v = fs.find("lower")) effect.lower = number(*v);
+    if (const Field* v = fs.find("upper")) effect.upper = number(*v);
+    if (const Field* v = fs.find("enable")) effect.enable = boolean(*v);
+    if (effect.lower && effect.upper && !(*effect.lower < *effect.upper))
+      fail(item, what + ": lower " + format(*effect.lower) + " must be below upper " + format(*effect.upper));
+    if (effect.initial && ((effect.lower && *effect.initial < *effect.lower) ||
+                           (effect.upper && *effect.initial > *effect.upper)))
+      fail(item, what + ": initial " + format(*effect.initial) + " lies outside its bounds");
+    // The change must make sense on this model; the value only matters for its range.
+    try {
+      const ModelChange change = parse_model_change(effect.effect + "=" + format_round_trip(effect.initial.value_or(1)));
+      const ModelEffect described = describe_model_change(model_, change);
+      for (const Parameter& q : problem_.parameters)
+        for (PropertyId t : q.targets)
+          if (model_.properties[t].name == described.name)
+            fail(text_field, "'" + effect.effect + "' sets " + described.name + ", which parameter '" + q.name +
+                                 "' already calibrates");
+      for (const DeclaredEffect& other : problem_.effects)
+        if (other.effect == effect.effect) fail(text_field, "'" + effect.effect + "' is declared twice");
+    } catch (const std::invalid_argument& e) {
+      if (dynamic_cast<const ProblemError*>(&e)) throw;
+      fail(text_field, std::string(e.what()) +
+                           " (an effect is a change without its value, e.g. joint2.kry or point_mass@top:mass)");
+    }
+    problem_.effects.push_back(effect);
+  }
 }
 
 void Loader::read_measured_file(const Field& f) {
@@ -1028,7 +1073,12 @@ SyntheticTruth Loader::recorded_truth(const Field& f) {
       effect.name = text(required(e, "name"));
       if (const Field* d = e.find("description")) effect.description = text(*d);
       effect.value = number(required(e, "value"));
-      effect.nominal_value = number(required(e, "nominal_value"));
+      // .inf: a flexible support, whose nominal is rigid.
+      const Field& nominal = required(e, "nominal_value");
+      if (nominal.node.IsScalar() && nominal.node.Scalar() == ".inf")
+        effect.nominal_value = std::numeric_limits<double>::infinity();
+      else
+        effect.nominal_value = number(nominal);
       truth.hidden_effects.push_back(effect);
     }
   if (const Field* other = fs.find("other_differences")) truth.other_differences = text(*other);
@@ -1294,22 +1344,34 @@ YAML::Node parse(const std::string& path, const std::string& what) {
 
 Problem load_problem(const std::string& path, const LoadOptions& options) {
   const YAML::Node root = parse(path, "problem file");
-  YAML::Node base;
-  std::string base_path;
-  if (root.IsMap() && root["extends"]) {
-    const YAML::Node extends = root["extends"];
+  // The chain of extended files, nearest first; each path is relative to the file naming it.
+  std::vector<std::pair<YAML::Node, std::string>> bases;
+  std::vector<std::string> visited = {std::filesystem::weakly_canonical(path).string()};
+  // (yaml-cpp nodes are references: assigning one node to another would overwrite the first's
+  // content, so each file's node is only ever created, never assigned.)
+  for (;;) {
+    const YAML::Node& node = bases.empty() ? root : bases.back().first;
+    const std::string& file = bases.empty() ? path : bases.back().second;
+    if (!node.IsMap() || !node["extends"]) break;
+    const YAML::Node extends = node["extends"];
+    const int line = extends.Mark().line + 1;
     if (!extends.IsScalar())
-      throw ProblemError(path, extends.Mark().line + 1, "'extends' must name a problem file, got " + describe(extends));
-    base_path = (std::filesystem::path(path).parent_path() / extends.Scalar()).string();
+      throw ProblemError(file, line, "'extends' must name a problem file, got " + describe(extends));
+    const std::string base_path = (std::filesystem::path(file).parent_path() / extends.Scalar()).string();
     if (!std::filesystem::exists(base_path))
-      throw ProblemError(path, extends.Mark().line + 1,
+      throw ProblemError(file, line,
                          "extends " + quote(extends.Scalar()) + ": no such file " + quote(base_path) +
                              " (the path is relative to this file's folder)");
-    base = parse(base_path, "problem file");
+    const std::string canonical = std::filesystem::weakly_canonical(base_path).string();
+    if (std::find(visited.begin(), visited.end(), canonical) != visited.end())
+      throw ProblemError(file, line, "extends " + quote(extends.Scalar()) + ", which is already in the chain of "
+                                     "extended files: the files extend each other in a loop");
+    visited.push_back(canonical);
+    bases.emplace_back(parse(base_path, "problem file"), base_path);
   }
   Problem problem;
   problem.path = path;
-  Loader(path, options, problem).load(root, base, base_path);
+  Loader(path, options, problem).load(root, bases);
   if (problem.synthetic) detail::synthesize_measured(&problem, *problem.synthetic);
   return problem;
 }

@@ -52,8 +52,8 @@ bool is_plain_name(const std::string& s) {
 
 const char* const kGrammar =
     "expected ENTITY.PROPERTY=VALUE (e.g. joint2.krx=3.1e5) or KIND@PLACE:PROPERTY=VALUE with KIND "
-    "point_mass, spring or joint and PLACE a node set, #NODE_ID or [x,y,z] (e.g. point_mass@top:mass=0.05, "
-    "joint@#17/#42:kx=1e6)";
+    "point_mass, spring, joint or support and PLACE a node set, #NODE_ID or [x,y,z] (e.g. "
+    "point_mass@top:mass=0.05, joint@#17/#42:kx=1e6, support@bottom:kx=1e8)";
 
 NodePlace parse_place(const std::string& text, const std::string& token) {
   const std::string t = trim(token);
@@ -104,6 +104,8 @@ const char* kind_keyword(ModelChange::Kind kind) {
       return "spring";
     case ModelChange::Kind::AddJoint:
       return "joint";
+    case ModelChange::Kind::FlexibleSupport:
+      return "support";
     case ModelChange::Kind::SetProperty:
       break;
   }
@@ -221,8 +223,13 @@ bool is_scale_factor(const std::string& property) {
   return property == "stiffness_scale" || property == "mass_scale";
 }
 
-/// Value of a property before it exists: scale factors multiply by 1, everything else adds 0.
+/// Value of a property before it exists: scale factors multiply by 1, everything else adds 0
+/// (flexible supports aside: absent_property_value).
 double absent_value(const std::string& property) { return is_scale_factor(property) ? 1.0 : 0.0; }
+
+bool is_flexible_support(const Model& model, EntityRef e) {
+  return e.kind == EntityKind::Spring && model.ground_springs[e.index].replaces_fixity;
+}
 
 /// "stiffness along x", "rotational stiffness about z".
 std::string component_words(int c) {
@@ -255,6 +262,35 @@ void check_value(const std::string& text, const std::string& property, double va
     fail(text, "Poisson's ratio must lie in (-1, 0.5), got " + format_round_trip(value));
   if (!positive && property != "nu" && value < 0)
     fail(text, property + " must not be negative, got " + format_round_trip(value));
+}
+
+/// Frees `component` of `nodes` wherever the model fixes it; every node must be fixed there.
+void release_fixity(Model& model, const std::vector<int>& nodes, int component, const std::string& place_words,
+                    const std::string& text) {
+  std::vector<bool> in_place(model.num_nodes(), false), released(model.num_nodes(), false);
+  for (int v : nodes) in_place[v] = true;
+  std::vector<FixedDofs> fixed;
+  for (const FixedDofs& f : model.fixed) {
+    if (!f.components[component]) {
+      fixed.push_back(f);
+      continue;
+    }
+    FixedDofs kept = f, freed = f;
+    kept.nodes.clear();
+    freed.nodes.clear();
+    freed.components[component] = false;
+    for (int v : f.nodes) (in_place[v] ? freed : kept).nodes.push_back(v);
+    for (int v : freed.nodes) released[v] = true;
+    if (!kept.nodes.empty()) fixed.push_back(kept);
+    if (!freed.nodes.empty() && std::find(freed.components.begin(), freed.components.end(), true) != freed.components.end())
+      fixed.push_back(freed);
+  }
+  for (int v : nodes)
+    if (!released[v])
+      fail(text, "node " + std::to_string(model.node_ids[v]) + " of " + place_words + " is not fixed along " +
+                     component_name(component) +
+                     "; a support change makes a fixity flexible (add a spring to ground with spring@... instead)");
+  model.fixed = std::move(fixed);
 }
 
 // ---------------------------------------------------------------------------- places
@@ -352,12 +388,16 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
   std::vector<ResolvedPlace> places;
   for (const NodePlace& p : change.places) places.push_back(resolve(model, p, text));
   const bool is_mass = change.kind == ModelChange::Kind::AddPointMass;
+  const bool is_support = change.kind == ModelChange::Kind::FlexibleSupport;
   const std::vector<std::string> keys = is_mass ? std::vector<std::string>{"mass", "Ixx", "Iyy", "Izz"} : kStiffnessKeys;
   const int component = index_of(keys, change.property);
   if (component < 0)
     fail(text, "an added " + std::string(is_mass ? "point mass" : kind_keyword(change.kind)) + " has no property '" +
                    change.property + "'; its properties: " + join(keys));
   check_value(text, change.property, change.value);
+  if (is_support && !(change.value > 0))
+    fail(text, "a flexible support's stiffness must be positive (0 would leave the nodes free), got " +
+                   format_round_trip(change.value));
   const bool rotational = is_mass ? component > 0 : component >= 3;
   for (const ResolvedPlace& place : places)
     for (int v : place.nodes)
@@ -376,6 +416,11 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
     entity = "added_spring_" + places[0].tag;
     effect.description = "added " + std::string(component >= 3 ? "rotational spring to ground about " : "spring to ground along ") +
                          kAxes[component % 3] + " at " + places[0].words;
+  } else if (is_support) {
+    entity = "support_" + places[0].tag;
+    effect.description = "flexible support " + std::string(component >= 3 ? "about " : "along ") +
+                         kAxes[component % 3] + " at " + places[0].words +
+                         ": a spring to ground in place of the fixity";
   } else {
     for (const ResolvedPlace& place : places)
       if (place.nodes.size() != 1)
@@ -405,14 +450,18 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
         m.node = v;
         model.point_masses.push_back(m);
       }
-  } else if (change.kind == ModelChange::Kind::AddSpring) {
+  } else if (change.kind == ModelChange::Kind::AddSpring || is_support) {
     clash(EntityKind::Spring);
     if (other.kind == EntityKind::None) {
       GroundSpring s;
       s.name = entity;
       s.nodes = places[0].nodes;
+      s.replaces_fixity = is_support;
       model.ground_springs.push_back(s);
+    } else if (model.ground_springs[other.index].replaces_fixity != is_support) {
+      fail(text, "'" + entity + "' is " + (is_support ? "an added spring, not a flexible support" : "a flexible support"));
     }
+    if (is_support) release_fixity(model, places[0].nodes, component, places[0].words, text);
   } else {
     clash(EntityKind::Joint);
     if (other.kind == EntityKind::None) {
@@ -424,7 +473,9 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
     }
   }
   const PropertyId existing = model.find_property(effect.name);
-  effect.nominal_value = existing == kNoProperty ? 0.0 : model.properties[existing].value;
+  effect.nominal_value = existing != kNoProperty ? model.properties[existing].value
+                         : is_support            ? std::numeric_limits<double>::infinity()
+                                                 : 0.0;
   const PropertyId id = existing == kNoProperty ? model.add_property(effect.name, change.value) : existing;
   model.properties[id].value = change.value;
   // Point masses on a node set share one property.
@@ -452,14 +503,15 @@ ModelChange parse_model_change(const std::string& raw) {
     const std::string kind = trim(text.substr(0, at));
     const std::pair<const char*, ModelChange::Kind> kinds[] = {{"point_mass", ModelChange::Kind::AddPointMass},
                                                                {"spring", ModelChange::Kind::AddSpring},
-                                                               {"joint", ModelChange::Kind::AddJoint}};
+                                                               {"joint", ModelChange::Kind::AddJoint},
+                                                               {"support", ModelChange::Kind::FlexibleSupport}};
     bool known = false;
     for (const auto& [keyword, k] : kinds)
       if (kind == keyword) {
         change.kind = k;
         known = true;
       }
-    if (!known) fail(text, "unknown kind '" + kind + "' before '@'; expected point_mass, spring or joint");
+    if (!known) fail(text, "unknown kind '" + kind + "' before '@'; expected point_mass, spring, joint or support");
     const size_t colon = text.find(':', at);
     if (colon == std::string::npos || colon > equals)
       fail(text, "no ':PROPERTY' after the place; e.g. " + kind + "@top:" + (kind == "point_mass" ? "mass" : "kz") + "=...");
@@ -516,7 +568,16 @@ std::string describe_property(const Model& model, const std::string& property_na
   const std::string entity = property_name.substr(0, dot), property = property_name.substr(dot + 1);
   const EntityRef e = find_entity_or_part(model, entity);
   if (e.kind == EntityKind::None) return property_name;
-  return property_words(e.kind, property) + " of " + entity_kind_name(e.kind) + " " + entity;
+  return property_words(e.kind, property) + " of " +
+         (is_flexible_support(model, e) ? std::string("flexible support") : entity_kind_name(e.kind)) + " " + entity;
+}
+
+double absent_property_value(const Model& model, const std::string& property_name) {
+  const size_t dot = property_name.rfind('.');
+  const std::string property = property_name.substr(dot == std::string::npos ? 0 : dot + 1);
+  if (dot != std::string::npos && is_flexible_support(model, find_entity(model, property_name.substr(0, dot))))
+    return std::numeric_limits<double>::infinity();
+  return absent_value(property);
 }
 
 std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
@@ -526,15 +587,14 @@ std::vector<ModelEffect> property_differences(const Model& nominal, const Model&
     if (index_of(excluded, name) >= 0 || nominal_value == value) return;
     effects.push_back({name, describe_property(described, name), value, nominal_value});
   };
-  const auto property_of = [](const std::string& name) { return name.substr(name.rfind('.') + 1); };
   for (const Property& p : changed.properties) {
     const PropertyId id = nominal.find_property(p.name);
-    consider(changed, p.name, id == kNoProperty ? absent_value(property_of(p.name)) : nominal.properties[id].value,
+    consider(changed, p.name, id == kNoProperty ? absent_property_value(changed, p.name) : nominal.properties[id].value,
              p.value);
   }
   for (const Property& p : nominal.properties)
     if (changed.find_property(p.name) == kNoProperty)
-      consider(nominal, p.name, p.value, absent_value(property_of(p.name)));
+      consider(nominal, p.name, p.value, absent_property_value(nominal, p.name));
   return effects;
 }
 

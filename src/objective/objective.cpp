@@ -260,7 +260,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   e.ok = true;
   if (need == Need::Value) return e;
 
-  // --- Gradient (adjoint) and, on request, the residual Jacobian (direct sensitivities).
+  // --- Gradient (adjoint) and, on request, the residual Jacobian (sensitivities or sensor adjoint).
   const int np = num_parameters();
   if (need == Need::Gradient && options_.gradient == ObjectiveOptions::Gradient::CentralDifferences) {
     e.gradient.resize(np);
@@ -361,7 +361,50 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     adjoint_solution = adjoint.solution;
   }
 
-  if (need >= Need::Jacobian) {
+  std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
+  for (int i = 0, r = num_measured; i < num_measured; ++i)
+    if (problem_.measured[i].shape.size()) {
+      first_row[i] = r;
+      r += ns;
+    }
+  const bool sensor_adjoint =
+      need == Need::Jacobian && (options_.jacobian == ObjectiveOptions::Jacobian::SensorAdjoint ||
+                                 (options_.jacobian == ObjectiveOptions::Jacobian::Automatic && np > ns));
+  if (sensor_adjoint) {
+    // P du/dp_j = P x_j - (u^T M_j u / 2) P u, and P x_j = P S b_j = Z^T b_j with Z = S P^T (S the
+    // deflated inverse, symmetric) and b_j = -(K_j - lambda M_j) u + dlambda_j M u, whose second
+    // part Z^T M u vanishes (S M u = 0). One solve per sensor reading instead of per parameter.
+    std::vector<int> rows_of, own_columns;
+    for (int i = 0; i < num_measured; ++i)
+      if (problem_.measured[i].shape.size() && problem_.measured[i].shape_weight > 0) rows_of.push_back(i);
+    const Matrix sensor_columns = Matrix(ws.sensors.transpose());
+    Matrix adjoint_rhs(U.rows(), static_cast<Eigen::Index>(rows_of.size()) * ns);
+    for (size_t a = 0; a < rows_of.size(); ++a) {
+      adjoint_rhs.middleCols(a * ns, ns) = sensor_columns;
+      own_columns.insert(own_columns.end(), ns, nr + model_of[rows_of[a]]);
+    }
+    const detail::DeflatedSolveResult sensor_solve =
+        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own_columns, adjoint_rhs, precondition,
+                               options_.linear_tolerance, options_.max_linear_iterations);
+    e.linear_solves += sensor_solve.column_solves;
+    if (!sensor_solve.converged) {
+      e.ok = false;
+      e.message = "sensor adjoint solve: " + sensor_solve.message;
+      return e;
+    }
+    for (size_t a = 0; a < rows_of.size(); ++a) {
+      const int i = rows_of[a];
+      const MeasuredMode& m = problem_.measured[i];
+      const int k = model_of[i];
+      const Vector y = ws.sensors * U.col(k);
+      Matrix A, B;  // np x ns: z_s^T K_j u and z_s^T M_j u
+      system_->derivative_forms(p, sensor_solve.solution.middleCols(a * ns, ns), U.col(k).replicate(1, ns), &A, &B);
+      const Matrix dy = -(A - lambda[k] * B).transpose() - 0.5 * y * umu[i].transpose();  // ns x np
+      for (int j = 0; j < np; ++j)
+        e.jacobian.block(first_row[i], j, ns, 1) =
+            std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), dy.col(j));
+    }
+  } else if (need >= Need::Jacobian) {
     // Eigenvector sensitivities du/dp_j = x_j - (u^T M_j u / 2) u with
     // (K - lambda M) x_j = -(K_j - lambda M_j) u + dlambda_j M u, x_j M-orthogonal to u:
     // for the shape rows of the Jacobian, and for every paired mode when the Hessian is wanted.
@@ -391,12 +434,6 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       e.message = "sensitivity solve: " + direct.message;
       return e;
     }
-    std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
-    for (int i = 0, r = num_measured; i < num_measured; ++i)
-      if (problem_.measured[i].shape.size()) {
-        first_row[i] = r;
-        r += ns;
-      }
     if (need == Need::Hessian) {
       e.hessian = Matrix::Zero(np, np);
       // Regularization: R = alpha/2 |x_r(p) - x_r0|^2, dx/dp = 1/p'(x), d2x/dp2 = -p''(x)/p'(x)^3.

@@ -30,6 +30,8 @@ bool ReducedOptions::IsValid(std::string* error) const {
   if (!(gradient_tolerance >= 0)) return bad("gradient_tolerance = " + std::to_string(gradient_tolerance) + ": must be >= 0");
   if (!(relative_gradient_tolerance >= 0 && relative_gradient_tolerance < 1))
     return bad("relative_gradient_tolerance = " + std::to_string(relative_gradient_tolerance) + ": must be in [0, 1)");
+  if (!(function_tolerance >= 0 && function_tolerance < 1))
+    return bad("function_tolerance = " + std::to_string(function_tolerance) + ": must be in [0, 1)");
   if (memory < 1) return bad("memory = " + std::to_string(memory) + ": must be >= 1");
   if (!(armijo > 0 && armijo < 0.5)) return bad("armijo = " + std::to_string(armijo) + ": must be in (0, 0.5)");
   if (max_line_search_steps < 1)
@@ -237,9 +239,17 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
     } else {
       memory.update(s, next.gradient - current.gradient);
     }
+    const double decrease = current.value - next.value;
     current = next;
     record(k, current, s.norm());
     summary.iterations = k;
+    if (options.function_tolerance > 0 && decrease <= options.function_tolerance * std::max(std::abs(current.value), 1.0)) {
+      char message[160];
+      std::snprintf(message, sizeof message,
+                    "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
+                    decrease, options.function_tolerance);
+      return finish(TerminationType::Converged, message, current);
+    }
   }
   if (summary.history.back().gradient_norm <= tolerance)
     return finish(TerminationType::Converged, "projected gradient norm below tolerance", current);

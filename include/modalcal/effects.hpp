@@ -1,0 +1,214 @@
+#pragma once
+/// \file effects.hpp
+/// Model-form diagnosis, "which effect is missing": candidate effects generated from the model's
+/// structure (and declared in the problem file), ranked by how much of the calibrated misfit each
+/// one removes on top of the calibration parameters.
+///
+/// **Candidates.** A candidate is a model change (model_change.hpp) whose value is free: its name
+/// is the change's canonical `<entity>.<property>` (the name synthetic data give their hidden
+/// effects), its description the change's words. generate_candidates() takes them from the model:
+///
+/// | where | candidates | variable | bounds |
+/// |---|---|---|---|
+/// | each block | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
+/// | each joint, spring | its six components: present ones | log | ×/÷ 10 |
+/// | | absent ones (the rotational ones a nominal model leaves out) | linear from 0 | [0, 100 k_ref] |
+/// | each point mass | `mass` | log | ×/÷ 10 |
+/// | each free node set | a spring to ground along x, y, z on each node | linear from 0 | [0, 100 k_ref] |
+/// | | an added mass on each of its n nodes | linear from 0 | [0, m_ref / 2n] |
+/// | each fixed node set | support flexibility per direction (`support@SET:kx`) | compliance | [k_ref/1000, k₀] |
+/// | each sensor node | an added point mass (a sensor's or cable's mass loading) | linear from 0 | [0, m_ref / 2] |
+/// | blocks sharing no node, < 2 elements apart | a joint along x, y, z at nearest nodes | from 0 | [0, 100 k_ref] |
+///
+/// k_ref is the stiffness of a node in the adjoining block, \f$E h\f$ (E Young's modulus, h the
+/// element size), or for a joint's absent rotational component its translational stiffness (the
+/// geometric mean of the present components) times the squared radius of the patch its nodes
+/// couple; m_ref the mass of the blocks the nodes belong to. Candidates whose property a
+/// calibration parameter already sets are left out.
+///
+/// **Screen** (rank_effects). With the residual vector r and its Jacobian
+/// \f$J_p\f$ in the calibration parameters at the calibrated point (noise-weighted, so that
+/// \f$\|r\|^2 = X^2\f$ of residual_test.hpp: see noise_weighted()), candidate j's column j in its
+/// screening variable (log10 of the value, the value, or the compliance \f$c = 1/k\f$ of a support,
+/// where the first-order effect of a rigid support's flexibility does not vanish) is projected off
+/// what the calibration parameters can already do, \f$j_\perp = (I - J_p J_p^+)\,j\f$, and the
+/// Gauss-Newton (score-test) prediction of the chi-square it removes is
+/// \f[ \Delta X^2_{pred} = \max_{\delta \in [\delta_-, \delta_+]} -2\delta\, j_\perp^T r - \delta^2 \|j_\perp\|^2
+///     \;=\; \frac{(j_\perp^T r)^2}{\|j_\perp\|^2} \text{ when the bounds do not bind,} \f]
+/// the bounds keeping one-sided effects (an added mass, a softer support) from "helping" by a
+/// negative value and tiny effects from helping by an absurd one. One evaluation of the model with
+/// every candidate added (at the value meaning "no effect"; a support at a stiff k₀ = 10³ k_ref)
+/// gives all columns at once; its shape rows come from one adjoint solve per sensor reading
+/// (ObjectiveOptions::Jacobian), not per candidate. Should that model fail to solve, the
+/// supports' candidates are evaluated apart, per support.
+///
+/// **Refit.** The best few by prediction are recalibrated with all calibration parameters free
+/// (reduced L-BFGS from the calibrated point, the candidate started at its first-order value);
+/// the achieved reduction \f$\Delta X^2 = X^2_{before} - X^2_{after}\f$ is a likelihood-ratio
+/// statistic, \f$\chi^2_1\f$ under "the effect is absent". It is *significant* above the
+/// \f$\chi^2_1\f$ critical value at the significance level divided by the number of candidates
+/// screened (Bonferroni: the best of many is tested). \f$\Delta BIC = \Delta X^2 - \ln n\f$ (n data)
+/// is reported beside it; positive favours the effect. Without a stated noise the objective's own
+/// weights stand in and significance uses the residual of the refit as the noise estimate
+/// (an F-test).
+///
+/// \code
+/// modalcal::Problem weighted = modalcal::noise_weighted(problem, *problem.measurement_noise);
+/// std::vector<modalcal::EffectCandidate> candidates = modalcal::generate_candidates(weighted);
+/// modalcal::EffectRanking ranking = modalcal::rank_effects(weighted, calibrated_p, candidates);
+/// std::cout << modalcal::format_effect_ranking(ranking, 10);
+/// \endcode
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "modalcal/model_change.hpp"
+#include "modalcal/problem.hpp"
+#include "modalcal/reduced.hpp"
+#include "modalcal/residual_test.hpp"
+
+namespace modalcal {
+
+/// A parameterized model change: the unit the ranking talks in.
+struct EffectCandidate {
+  /// How the screen linearizes the effect and the refit scales it.
+  enum class Variable {
+    Log,         ///< log10 of a positive value with a nonzero nominal (scale factors, present stiffness)
+    Linear,      ///< the value itself, from a nominal of 0 (absent components, added masses and springs)
+    Compliance,  ///< 1/k of a flexible support, from 0 (rigid); the refit works in log10 k
+  };
+  std::string name;         ///< canonical `<entity>.<property>`, e.g. "joint2.kry"
+  std::string description;  ///< in words, e.g. "rotational stiffness about y of joint joint2"
+  ModelChange change;       ///< its value is set to the candidate's value when applied
+  Variable variable = Variable::Log;
+  double nominal = 1;             ///< the value that means "no effect": 1, 0, or +infinity (rigid support)
+  double screen_value = 1;        ///< where the screen linearizes: the nominal, or k₀ for a support
+  double reference = 1;           ///< a typical magnitude (physical units), for scaling
+  double lower = 0, upper = 0;    ///< bounds of the value, lower < upper
+  std::optional<double> initial;  ///< a declared start (else the first-order estimate)
+  bool declared = false;          ///< from the problem file's `effects:` or the command line
+};
+
+/// Which automatic candidates to generate (all by default).
+struct CandidateOptions {
+  bool blocks = true;         ///< stiffness and mass scale per block
+  bool joints = true;         ///< six components per joint and spring, mass per point mass
+  bool node_sets = true;      ///< springs to ground and added masses per free node set
+  bool supports = true;       ///< flexibility of each fixed node set, per fixed component
+  bool sensor_masses = true;  ///< an added mass at each sensor node
+  bool between_parts = true;  ///< springs between blocks that share no node but nearly touch
+  /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
+  /// element size of the two. Range: > 0.
+  double gap_factor = 2.0;
+  /// The screen's stand-in for a rigid support: springs of this many k_ref (a support's screen
+  /// value k₀). The screen's columns are taken at c₀ = 1/k₀ instead of 0 (an error of about
+  /// 1/this, relative; the residual itself is the rigid model's). Much stiffer springs inflate
+  /// tr(K), by which the eigen-solver judges what is a rigid-body mode: with 10⁴ k_ref the portal
+  /// frame's column feet made its first elastic mode look rigid. Range: [10, 1e8].
+  double rigid_support_factor = 1e3;
+  /// Returns false and names the field, its value and the violated condition.
+  bool IsValid(std::string* error) const;
+};
+
+/// The candidates of `problem`'s model (table above), then the declared ones (Problem::effects),
+/// without those whose property a calibration parameter sets; unique names, declared ones
+/// replacing automatic ones of the same name.
+/// \throws std::invalid_argument for invalid options.
+std::vector<EffectCandidate> generate_candidates(const Problem& problem, const CandidateOptions& options = {});
+
+/// One candidate from a change text without its value ("joint2.kry", "point_mass@top:mass",
+/// "support@post_bottom:kx") or with a start value ("joint2.kry=1e5"), with the defaults of the
+/// table above; or the candidate of that name among generate_candidates() (e.g.
+/// "added_mass_node123.mass"). Marked declared.
+/// \throws std::invalid_argument naming the text and why it does not apply to the model.
+EffectCandidate make_candidate(const Problem& problem, const std::string& text, const CandidateOptions& options = {});
+
+/// The declared effects of `problem` that are enabled (`enable: true`), as candidates.
+std::vector<EffectCandidate> enabled_candidates(const Problem& problem, const CandidateOptions& options = {});
+
+/// `problem` with each candidate applied to its model at `values[k]` and added as a parameter
+/// after the problem's own (name = candidate name, initial value `values[k]`, bounds of the
+/// candidate). Log scaling where the value is positive (an effect from 0 then searched down to a
+/// thousandth of `values[k]`, its lower bound), linear scaling with the candidate's reference
+/// where it is 0 (the screen's point) or the bounds include negative values.
+/// \throws std::invalid_argument if a change cannot be applied (naming it) or the sizes differ.
+Problem problem_with_effects(const Problem& problem, const std::vector<EffectCandidate>& candidates,
+                             const std::vector<double>& values);
+
+struct RankingOptions {
+  /// How many of the best-predicted candidates are refitted. Range: >= 0.
+  int refits = 3;
+  /// Significance level of the likelihood-ratio test, before the Bonferroni division by the
+  /// number of candidates screened. Range: (0, 0.5).
+  double significance = 0.01;
+  /// The refits: Gauss-Newton (from the first-order start it needed 5 iterations where L-BFGS
+  /// needed 17 on the LFU joint-rotation case, and 20 % less time). Tolerances suit a
+  /// noise-weighted misfit (values of the order of the number of data): the projected gradient in
+  /// scaled variables to 1e-4, or 1e-8 of its start, or an iteration that lowers the misfit by at
+  /// most 1e-5 of it (a change of the chi-square below about 0.01); at most 60 iterations.
+  ReducedOptions refit = default_refit_options();
+  /// Deflated solves to 1e-8 (the default 1e-11 buys nothing a ranking can see and costs a
+  /// third more solves).
+  ObjectiveOptions objective = default_objective_options();
+  /// Returns false and names the field, its value and the violated condition.
+  bool IsValid(std::string* error) const;
+  static ReducedOptions default_refit_options();
+  static ObjectiveOptions default_objective_options();
+};
+
+struct RankedEffect {
+  EffectCandidate candidate;
+  double predicted_reduction = 0;  ///< first-order \f$\Delta X^2_{pred}\f$ (bounded)
+  double predicted_value = 0;      ///< the value at the first-order optimum
+  bool refitted = false;
+  double achieved_reduction = NAN;  ///< \f$X^2_{before} - X^2_{after}\f$ of the refit
+  double value = NAN;               ///< identified by the refit (else the predicted value)
+  double chi2_after = NAN;          ///< \f$X^2\f$ with the effect (refitted only)
+  int dof_after = 0;
+  double p_value_after = NAN;
+  bool model_form_error_after = false;  ///< the residual test still fails with the effect
+  double delta_bic = NAN;               ///< \f$\Delta X^2 - \ln n\f$
+  double delta_aic = NAN;               ///< \f$\Delta X^2 - 2\f$
+  /// One standard deviation of the identified value, \f$\sqrt{((J^T J)^{-1})_{\theta\theta}}\f$ with
+  /// the noise-weighted Jacobian at the refit (the first-ranked effect only; NaN otherwise or
+  /// without a stated noise).
+  double standard_error = NAN;
+  bool significant = false;  ///< likelihood-ratio test passed (refitted only)
+  /// The refit's calibration parameters, then the effect's value; before a refit, the
+  /// first-order estimate of them (its start).
+  Vector parameters;
+  ReducedSummary refit;  ///< the refit's optimizer summary
+  /// "rotational stiffness about y of joint joint2, identified 3.1e+05" (or "predicted ...").
+  std::string summary() const;
+};
+
+struct EffectRanking {
+  /// Refitted candidates by achieved reduction, then the others by predicted reduction.
+  std::vector<RankedEffect> effects;
+  double chi2_before = 0;  ///< \f$X^2\f$ at the calibrated point (or 2J without noise)
+  int dof_before = 0;
+  int num_data = 0;          ///< n: one per frequency, s - 1 per shape of s values
+  bool noise_known = false;  ///< the residuals were weighted by a stated noise
+  int screened = 0;          ///< candidates with a usable column
+  /// Candidates the screen set aside, with the reason ("no effect on the measured modes", "the
+  /// calibration parameters already do this", "could not be applied: ...").
+  std::vector<std::pair<std::string, std::string>> set_aside;
+  double critical_value = 0;  ///< of the likelihood-ratio test
+  double screen_seconds = 0, refit_seconds = 0;
+  int linear_solves = 0;  ///< of the screen's Jacobian
+};
+
+/// Screens `candidates` at the calibrated parameters `calibrated` of `problem` (weighted by its
+/// measurement noise when it has one, see noise_weighted) and refits the best ones.
+/// `problem` must be the weighted problem the calibration minimized.
+/// \throws std::invalid_argument for invalid options or sizes; std::runtime_error if the
+///   calibrated point cannot be evaluated.
+EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
+                           const std::vector<EffectCandidate>& candidates, const RankingOptions& options = {});
+
+/// The ranking as a table: rank, name, predicted and achieved reduction, value, ΔBIC,
+/// significant; its first `max_rows` rows, then the description of each refitted one.
+std::string format_effect_ranking(const EffectRanking& ranking, int max_rows = 10);
+
+}  // namespace modalcal

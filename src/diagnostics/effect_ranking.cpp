@@ -1,0 +1,393 @@
+// The effect ranking: a first-order screen of every candidate from one Jacobian, then refits of
+// the best (formulas in effects.hpp).
+#include <Eigen/QR>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "modalcal/effects.hpp"
+
+namespace modalcal {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+/// The screening variable of a value, and back.
+double to_variable(const EffectCandidate& c, double value) {
+  switch (c.variable) {
+    case EffectCandidate::Variable::Log:
+      return std::log10(value);
+    case EffectCandidate::Variable::Linear:
+      return value;
+    case EffectCandidate::Variable::Compliance:
+      return 1 / value;  // 0 for +infinity
+  }
+  return value;
+}
+double from_variable(const EffectCandidate& c, double x) {
+  switch (c.variable) {
+    case EffectCandidate::Variable::Log:
+      return std::pow(10.0, x);
+    case EffectCandidate::Variable::Linear:
+      return x;
+    case EffectCandidate::Variable::Compliance:
+      return x > 0 ? 1 / x : std::numeric_limits<double>::infinity();
+  }
+  return x;
+}
+/// d value / d variable at `value`.
+double value_per_variable(const EffectCandidate& c, double value) {
+  switch (c.variable) {
+    case EffectCandidate::Variable::Log:
+      return value * std::log(10.0);
+    case EffectCandidate::Variable::Linear:
+      return 1;
+    case EffectCandidate::Variable::Compliance:
+      return -value * value;  // k = 1/c
+  }
+  return 1;
+}
+
+/// The misfit statistic at an evaluation: X^2 against the stated noise, or without one 2J
+/// (the objective's own weights), with its degrees of freedom and number of data.
+struct Misfit {
+  double statistic = 0;
+  int dof = 1, data = 0;
+  double p_value = NAN;
+  bool model_form_error = false;
+};
+
+Misfit misfit_of(const Objective& objective, const Evaluation& e, int num_parameters, double significance) {
+  const Problem& problem = objective.problem();
+  Misfit m;
+  if (problem.measurement_noise && problem.measurement_noise->frequency > 0) {
+    ResidualTestOptions options;
+    options.significance = significance;
+    const ResidualTest t = test_residual(objective, e, *problem.measurement_noise, num_parameters, options);
+    m.statistic = t.statistic;
+    m.dof = t.dof;
+    m.p_value = t.p_value;
+    m.model_form_error = t.model_form_error;
+    for (const ModeResidual& r : t.modes) m.data += r.dof;
+    return m;
+  }
+  m.statistic = e.residuals.squaredNorm();
+  for (const PairedMode& pair : e.pairs) {
+    const MeasuredMode& measured = problem.measured[pair.measured];
+    if (measured.weight > 0) m.data += 1;
+    if (measured.shape_weight > 0 && measured.shape.size() > 1) m.data += static_cast<int>(measured.shape.size()) - 1;
+  }
+  m.dof = std::max(1, m.data - num_parameters);
+  return m;
+}
+
+std::string format_value(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.3g", v);
+  return buffer;
+}
+
+}  // namespace
+
+ReducedOptions RankingOptions::default_refit_options() {
+  ReducedOptions options;
+  options.method = ReducedOptions::Method::GaussNewton;
+  options.max_iterations = 60;
+  options.gradient_tolerance = 1e-4;
+  options.relative_gradient_tolerance = 1e-8;
+  options.function_tolerance = 1e-5;
+  return options;
+}
+
+ObjectiveOptions RankingOptions::default_objective_options() {
+  ObjectiveOptions options;
+  options.linear_tolerance = 1e-8;
+  return options;
+}
+
+bool RankingOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (refits < 0) return bad("refits = " + std::to_string(refits) + ": must be >= 0");
+  if (!(significance > 0 && significance < 0.5))
+    return bad("significance = " + std::to_string(significance) + ": must be in (0, 0.5)");
+  std::string inner;
+  if (!refit.IsValid(&inner)) return bad("refit." + inner);
+  if (!objective.IsValid(&inner)) return bad("objective." + inner);
+  return true;
+}
+
+std::string RankedEffect::summary() const {
+  const double v = refitted ? value : predicted_value;
+  std::string text = candidate.description + (refitted ? ", identified " : ", predicted ") + format_value(v);
+  if (std::isfinite(standard_error)) text += " +/- " + format_value(standard_error);
+  return text;
+}
+
+EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
+                           const std::vector<EffectCandidate>& candidates, const RankingOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("RankingOptions: " + error);
+  const int np = static_cast<int>(problem.parameters.size());
+  if (calibrated.size() != np)
+    throw std::invalid_argument("rank_effects: " + std::to_string(calibrated.size()) + " calibrated values for " +
+                                std::to_string(np) + " parameters");
+  const Clock::time_point screen_start = Clock::now();
+  EffectRanking ranking;
+  ranking.noise_known = problem.measurement_noise && problem.measurement_noise->frequency > 0;
+  Misfit before;
+  Vector r;  // the residual at the calibrated point, of the model as it is (supports rigid)
+  {
+    Objective objective(problem, options.objective);
+    const Evaluation e = objective.evaluate(calibrated);
+    if (!e.ok) throw std::runtime_error("rank_effects: the calibrated point cannot be evaluated: " + e.message);
+    before = misfit_of(objective, e, np, options.significance);
+    r = e.residuals;
+  }
+  ranking.chi2_before = before.statistic;
+  ranking.dof_before = before.dof;
+  ranking.num_data = before.data;
+
+  // Every candidate at once, at its screen value; those that do not apply are set aside.
+  std::vector<EffectCandidate> usable;
+  {
+    Model trial = problem.model;
+    for (const EffectCandidate& c : candidates) {
+      ModelChange change = c.change;
+      change.value = c.screen_value;
+      try {
+        apply_model_change(&trial, change);
+        usable.push_back(c);
+      } catch (const std::invalid_argument& e) {
+        ranking.set_aside.emplace_back(c.name, std::string("could not be applied: ") + e.what());
+      }
+    }
+  }
+  // The Jacobian of the model with a group of candidates added, calibration parameters first.
+  auto jacobian_with = [&](const std::vector<EffectCandidate>& group, Evaluation* e) {
+    std::vector<double> values;
+    for (const EffectCandidate& c : group) values.push_back(c.screen_value);
+    const Problem augmented = problem_with_effects(problem, group, values);
+    Objective objective(augmented, options.objective);
+    Vector p(np + group.size());
+    p << calibrated, Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
+    *e = objective.evaluate(p, Need::Jacobian);
+    ranking.linear_solves += e->linear_solves;
+    return e->ok;
+  };
+  // One evaluation for all. If that model cannot be solved (many stiff support springs can make
+  // the eigen-solver take elastic modes for rigid ones), the other candidates and each support's
+  // candidates are evaluated apart, and a group that still fails is set aside.
+  Matrix Jp, columns(r.size(), static_cast<Eigen::Index>(usable.size()));
+  std::vector<bool> evaluated(usable.size(), false);
+  Evaluation e;
+  if (jacobian_with(usable, &e)) {
+    Jp = e.jacobian.leftCols(np);
+    columns = e.jacobian.rightCols(usable.size());
+    evaluated.assign(usable.size(), true);
+  } else {
+    std::vector<std::string> keys;  // "" for the other candidates, else the support's place
+    std::vector<std::vector<size_t>> groups;
+    for (size_t k = 0; k < usable.size(); ++k) {
+      const ModelChange& change = usable[k].change;
+      const std::string key = change.kind == ModelChange::Kind::FlexibleSupport
+                                  ? "support " + to_string(change).substr(0, to_string(change).find(':'))
+                                  : "";
+      const auto at = std::find(keys.begin(), keys.end(), key);
+      if (at == keys.end()) {
+        keys.push_back(key);
+        groups.push_back({k});
+      } else {
+        groups[at - keys.begin()].push_back(k);
+      }
+    }
+    for (const std::vector<size_t>& group : groups) {
+      std::vector<EffectCandidate> members;
+      for (size_t k : group) members.push_back(usable[k]);
+      if (!jacobian_with(members, &e)) {
+        for (size_t k : group) ranking.set_aside.emplace_back(usable[k].name, "could not be evaluated: " + e.message);
+        continue;
+      }
+      if (Jp.size() == 0) Jp = e.jacobian.leftCols(np);
+      for (size_t a = 0; a < group.size(); ++a) {
+        columns.col(group[a]) = e.jacobian.col(np + a);
+        evaluated[group[a]] = true;
+      }
+    }
+    if (Jp.size() == 0 && np > 0)
+      throw std::runtime_error("rank_effects: no model with candidates added can be evaluated: " + e.message);
+  }
+
+  // What the calibration parameters can already do: an orthonormal basis of their columns.
+  Matrix Q(r.size(), 0);
+  if (Jp.size() == 0) Jp = Matrix(r.size(), 0);
+  Vector column_norms = Vector::Ones(np);
+  for (int j = 0; j < np; ++j)
+    if (const double n = Jp.col(j).norm(); n > 0) {
+      column_norms[j] = n;
+      Jp.col(j) /= n;
+    }
+  Eigen::ColPivHouseholderQR<Matrix> qr(Jp);
+  qr.setThreshold(1e-10);
+  if (np > 0) Q = qr.householderQ() * Matrix::Identity(r.size(), qr.rank());
+  // Where the linear model puts the calibration parameters once the effect has moved by `step`:
+  // p - J_p^+ (r + j step), each kept within a factor of two and its bounds (the refit's start).
+  auto shifted_parameters = [&](const Vector& column, double step) {
+    Vector p1 = calibrated;
+    if (np == 0) return p1;
+    const Vector shift = qr.solve(Vector(-(r + column * step))).cwiseQuotient(column_norms);
+    for (int j = 0; j < np; ++j) {
+      const Parameter& q = problem.parameters[j];
+      const double v = calibrated[j] + shift[j];
+      p1[j] =
+          std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
+    }
+    return p1;
+  };
+  std::vector<RankedEffect> screened;
+  for (size_t k = 0; k < usable.size(); ++k) {
+    if (!evaluated[k]) continue;
+    const EffectCandidate& c = usable[k];
+    const Vector column = columns.col(k) * value_per_variable(c, c.screen_value);
+    const double norm = column.norm();
+    if (!(norm > 0) || !std::isfinite(norm)) {
+      ranking.set_aside.emplace_back(c.name, "no effect on the measured modes");
+      continue;
+    }
+    const Vector projected = column - Q * (Q.transpose() * column);
+    const double h = projected.squaredNorm();
+    if (!(h > 1e-10 * norm * norm)) {
+      ranking.set_aside.emplace_back(c.name, "the calibration parameters already do this");
+      continue;
+    }
+    // 1-D Gauss-Newton in the screening variable, within the candidate's bounds.
+    const double g = projected.dot(r);
+    const double x0 = to_variable(c, c.screen_value);
+    double lo = to_variable(c, c.lower) - x0, hi = to_variable(c, c.upper) - x0;
+    if (lo > hi) std::swap(lo, hi);  // compliance runs opposite to stiffness
+    const double step = std::clamp(-g / h, lo, hi);
+    RankedEffect ranked;
+    ranked.candidate = c;
+    ranked.predicted_reduction = std::max(0.0, -2 * step * g - step * step * h);
+    ranked.predicted_value = from_variable(c, x0 + step);
+    ranked.value = ranked.predicted_value;
+    ranked.parameters.resize(np + 1);
+    ranked.parameters << shifted_parameters(column, step), ranked.predicted_value;
+    screened.push_back(ranked);
+  }
+  ranking.screened = static_cast<int>(screened.size());
+  std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
+    return a.predicted_reduction > b.predicted_reduction;
+  });
+  ranking.screen_seconds = seconds_since(screen_start);
+
+  // Refits of the best predictions: every calibration parameter free, the effect started at its
+  // first-order value (or its declared start).
+  const Clock::time_point refit_start = Clock::now();
+  ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
+  for (int k = 0; k < std::min<int>(options.refits, static_cast<int>(screened.size())); ++k) {
+    RankedEffect& ranked = screened[k];
+    if (!(ranked.predicted_reduction > 0) && !ranked.candidate.initial) continue;
+    const EffectCandidate& c = ranked.candidate;
+    double start = c.initial.value_or(ranked.predicted_value);
+    start = std::clamp(start, c.lower, c.upper);
+    if (c.variable == EffectCandidate::Variable::Compliance && !std::isfinite(start)) start = c.upper;
+    const Problem with = problem_with_effects(problem, {c}, {start});
+    Objective refit_objective(with, options.objective);
+    Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
+    p0[np] = start;
+    ranked.refit = minimize_reduced(refit_objective, p0, options.refit);
+    if (ranked.refit.final.size() != np + 1) continue;
+    const Evaluation after = refit_objective.evaluate(ranked.refit.final);
+    if (!after.ok) continue;
+    const Misfit m = misfit_of(refit_objective, after, np + 1, options.significance);
+    ranked.refitted = true;
+    ranked.parameters = ranked.refit.final;
+    ranked.value = ranked.refit.final[np];
+    ranked.chi2_after = m.statistic;
+    ranked.dof_after = m.dof;
+    ranked.p_value_after = m.p_value;
+    ranked.model_form_error_after = m.model_form_error;
+    ranked.achieved_reduction = ranking.chi2_before - m.statistic;
+    // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees).
+    const double statistic =
+        ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
+    ranked.significant = statistic > ranking.critical_value;
+    ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
+    ranked.delta_aic = statistic - 2;
+  }
+  // Refitted first by what they achieved, then the rest by prediction.
+  std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
+    if (a.refitted != b.refitted) return a.refitted;
+    return a.refitted ? a.achieved_reduction > b.achieved_reduction : false;
+  });
+  if (!screened.empty() && screened.front().refitted && ranking.noise_known) {
+    // Covariance of a noise-weighted least-squares estimate: (J^T J)^-1.
+    RankedEffect& best = screened.front();
+    const Problem with = problem_with_effects(problem, {best.candidate}, {best.value});
+    Objective best_objective(with, options.objective);
+    const Evaluation at = best_objective.evaluate(best.parameters, Need::Jacobian);
+    if (at.ok) {
+      // In relative units (columns times the values), which are all of order one.
+      Vector scale = best.parameters.cwiseAbs();
+      for (int j = 0; j < scale.size(); ++j)
+        if (!(scale[j] > 0)) scale[j] = 1;
+      const Matrix scaled = at.jacobian * scale.asDiagonal();
+      Eigen::ColPivHouseholderQR<Matrix> information(scaled.transpose() * scaled);
+      if (information.isInvertible())
+        best.standard_error = scale[np] * std::sqrt(std::max(0.0, information.inverse()(np, np)));
+    }
+  }
+  ranking.refit_seconds = seconds_since(refit_start);
+  ranking.effects = std::move(screened);
+  return ranking;
+}
+
+std::string format_effect_ranking(const EffectRanking& ranking, int max_rows) {
+  std::string text;
+  char line[400];
+  const char* unit = ranking.noise_known ? "chi-square" : "2J (no stated noise)";
+  std::snprintf(line, sizeof line, "%s before: %.4g on %d degrees of freedom (%d data); %d candidates screened\n", unit,
+                ranking.chi2_before, ranking.dof_before, ranking.num_data, ranking.screened);
+  text += line;
+  std::snprintf(line, sizeof line, "%4s  %-34s %11s %11s %11s %9s  %s\n", "rank", "effect", "predicted", "achieved",
+                "value", "dBIC", "significant");
+  text += line;
+  const int rows = std::min<int>(max_rows, static_cast<int>(ranking.effects.size()));
+  for (int k = 0; k < rows; ++k) {
+    const RankedEffect& r = ranking.effects[k];
+    const std::string achieved = r.refitted ? format_value(r.achieved_reduction) : "-";
+    const std::string bic = r.refitted ? format_value(r.delta_bic) : "-";
+    std::snprintf(line, sizeof line, "%4d  %-34s %11s %11s %11s %9s  %s\n", k + 1, r.candidate.name.c_str(),
+                  format_value(r.predicted_reduction).c_str(), achieved.c_str(),
+                  format_value(r.refitted ? r.value : r.predicted_value).c_str(), bic.c_str(),
+                  r.refitted ? (r.significant ? "yes" : "no") : "-");
+    text += line;
+  }
+  std::snprintf(line, sizeof line,
+                "(predicted: first-order reduction of the %s; achieved: by a refit with every parameter free; "
+                "significant: above %.3g, the chi-square(1) value at the significance level / %d candidates)\n",
+                unit, ranking.critical_value, ranking.screened);
+  text += line;
+  for (int k = 0; k < rows; ++k) {
+    const RankedEffect& r = ranking.effects[k];
+    if (!r.refitted) continue;
+    std::snprintf(line, sizeof line, "%4d  %s: %s; %s %.4g -> %.4g", k + 1, r.candidate.name.c_str(),
+                  r.summary().c_str(), unit, ranking.chi2_before, r.chi2_after);
+    text += line;
+    if (ranking.noise_known)
+      text += r.model_form_error_after ? " (still more than the noise)" : " (consistent with the noise)";
+    text += "\n";
+  }
+  return text;
+}
+
+}  // namespace modalcal

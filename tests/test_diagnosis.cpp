@@ -1,0 +1,352 @@
+// Model-form diagnosis on a small assembly (228 DOFs): the candidate effects the model's structure
+// yields, the chi-square weights and critical values, the first-order screen against refits, and
+// the whole loop, which must find a hidden effect and leave a correct model alone.
+
+#include <algorithm>
+#include <cmath>
+
+#include "modalcal/diagnosis.hpp"
+#include "modalcal/effects.hpp"
+#include "modalcal/synthesis.hpp"
+#include "test_util.hpp"
+
+namespace modalcal {
+namespace {
+
+using testing::WriteTempFile;
+
+// A base and a top block joined by a joint between two patches and by a soft pad, the base
+// clamped at x = 0; base and top share no node (0.25 apart). Three parameters: each block's
+// Young's modulus and the joint's kx.
+const char* const kAssembly = R"(
+mesh:
+  element: hex8
+  element_size: 0.5
+  boxes:
+    - {block: base, min: [0, 0, 0], max: [2, 1, 1.5]}
+    - {block: pad,  min: [2, 0, 0], max: [2.25, 1, 0.5]}
+    - {block: top,  min: [2.25, 0, 0], max: [3.25, 1, 1.5]}
+blocks:
+  base: {E: 1000, nu: 0.3, density: 1.0}
+  pad:  {K: 50, G: 20, density: 0.1}
+  top:  {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 1, 1.5]}}
+  base_patch: {box: {min: [2, 0, 1], max: [2, 1, 1.5]}, block: base}
+  top_patch: {box: {min: [2.25, 0, 1], max: [2.25, 1, 1.5]}, block: top}
+  tip: {box: {min: [3.25, 0, 0], max: [3.25, 1, 1.5]}}
+reference_nodes:
+  a: [2.125, 0.5, 1.25]
+  b: [2.125, 0.5, 1.25]
+rigid_couplings:
+  - {reference: a, node_set: base_patch}
+  - {reference: b, node_set: top_patch}
+joints:
+  j: {nodes: [a, b], kx: 200, ky: 100, kz: 100}
+fixed:
+  - {node_set: root, dofs: [x, y, z]}
+parameters:
+  E_base: {targets: [base.E], initial: 900, lower: 100, upper: 1e4, scaling: log, truth: 1000}
+  E_top: {targets: [top.E], initial: 900, lower: 100, upper: 1e4, scaling: log, truth: 1000}
+  kx: {targets: [j.kx], initial: 150, lower: 10, upper: 1e4, scaling: log, truth: 200}
+sensors:
+  - {at: [3.25, 0, 0], directions: [x, y, z]}
+  - {at: [3.25, 1, 1.5], directions: [x, y, z]}
+  - {at: [3.25, 0, 1.5], directions: [x, y, z]}
+  - {at: [2, 1, 0], directions: [x, y, z]}
+  - {at: [2, 0, 1.5], directions: [x, y, z]}
+measured:
+  synthetic: {modes: [1, 2, 3, 4, 5, 6, 7], shapes: true}
+options: {num_modes: 8}
+)";
+
+Problem LoadAssembly(const std::string& extra = "") {
+  return load_problem(WriteTempFile("assembly.yaml", std::string(kAssembly) + extra));
+}
+
+/// The assembly measured on a truth with `changes`, 0.2 % frequency and 2 % shape noise.
+Problem WithHiddenEffect(const std::vector<std::string>& changes, std::uint64_t seed) {
+  Problem problem = LoadAssembly();
+  std::vector<ModelChange> parsed;
+  for (const std::string& c : changes) parsed.push_back(parse_model_change(c));
+  SynthesisOptions options;
+  options.modes = problem.synthetic->modes;
+  options.noise = {0.002, 0.02, seed};
+  const MeasuredData data =
+      synthesize_measured_data(problem, make_truth(problem, nullptr, parsed), problem.sensors, options);
+  problem.measured = data.modes;
+  problem.synthetic.reset();
+  problem.measurement_noise = data.noise;
+  problem.synthetic_truth = data.truth;
+  return problem;
+}
+
+const EffectCandidate* Find(const std::vector<EffectCandidate>& candidates, const std::string& name) {
+  const auto it = std::find_if(candidates.begin(), candidates.end(), [&](const auto& c) { return c.name == name; });
+  return it == candidates.end() ? nullptr : &*it;
+}
+
+TEST(EffectCandidates, FollowTheModelsStructure) {
+  const Problem problem = LoadAssembly();
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  std::vector<std::string> names;
+  for (const EffectCandidate& c : candidates) names.push_back(c.name);
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(std::adjacent_find(names.begin(), names.end()), names.end()) << "names must be unique";
+
+  // Blocks: stiffness and mass scale, in decades about 1.
+  const EffectCandidate* scale = Find(candidates, "pad.stiffness_scale");
+  ASSERT_TRUE(scale);
+  EXPECT_EQ(scale->variable, EffectCandidate::Variable::Log);
+  EXPECT_EQ(scale->nominal, 1);
+  EXPECT_EQ(scale->lower, 0.1);
+  EXPECT_EQ(scale->upper, 10);
+  EXPECT_EQ(scale->description, "stiffness multiplier of block pad");
+  EXPECT_TRUE(Find(candidates, "top.mass_scale"));
+  // The joint: its six components except the calibrated kx; present ones in decades, absent
+  // (rotational) ones linear from 0 with a reference from the joint's stiffness and patch size.
+  EXPECT_FALSE(Find(candidates, "j.kx"));
+  const EffectCandidate* ky = Find(candidates, "j.ky");
+  ASSERT_TRUE(ky);
+  EXPECT_EQ(ky->variable, EffectCandidate::Variable::Log);
+  EXPECT_EQ(ky->nominal, 100);
+  const EffectCandidate* krx = Find(candidates, "j.krx");
+  ASSERT_TRUE(krx);
+  EXPECT_EQ(krx->variable, EffectCandidate::Variable::Linear);
+  EXPECT_EQ(krx->nominal, 0);
+  EXPECT_EQ(krx->lower, 0);
+  EXPECT_GT(krx->reference, 0);
+  EXPECT_EQ(krx->upper, 100 * krx->reference);
+  EXPECT_EQ(krx->description, "rotational stiffness about x of joint j");
+  // A free node set: springs to ground and an added mass on each node; the clamped one: only the
+  // flexibility of its support, per fixed direction, screened at a stiff k0 and searched below it.
+  EXPECT_TRUE(Find(candidates, "added_spring_tip.kz"));
+  EXPECT_TRUE(Find(candidates, "added_mass_tip.mass"));
+  EXPECT_FALSE(Find(candidates, "added_spring_root.kx"));
+  EXPECT_FALSE(Find(candidates, "added_mass_root.mass"));
+  const EffectCandidate* support = Find(candidates, "support_root.kx");
+  ASSERT_TRUE(support);
+  EXPECT_EQ(support->variable, EffectCandidate::Variable::Compliance);
+  EXPECT_TRUE(std::isinf(support->nominal));
+  EXPECT_EQ(support->screen_value, CandidateOptions().rigid_support_factor * support->reference);
+  EXPECT_EQ(support->upper, support->screen_value);
+  EXPECT_LT(support->lower, support->reference);
+  // A mass at every sensor node (mass loading), and springs between the blocks that nearly touch.
+  int sensor_masses = 0, between = 0;
+  for (const EffectCandidate& c : candidates) {
+    sensor_masses += c.description.find("a sensor's position") != std::string::npos;
+    between += c.description.find("between blocks base and top, 0.25 apart") != std::string::npos;
+  }
+  EXPECT_EQ(sensor_masses, 5);
+  EXPECT_EQ(between, 3);  // along x, y and z
+  // Switched off by the options.
+  CandidateOptions only_blocks;
+  only_blocks.joints = only_blocks.node_sets = only_blocks.supports = only_blocks.sensor_masses =
+      only_blocks.between_parts = false;
+  EXPECT_EQ(generate_candidates(problem, only_blocks).size(), 6u);  // three blocks, two scales each
+}
+
+TEST(EffectCandidates, DeclaredAndNamedEffects) {
+  const Problem problem = LoadAssembly(R"(
+effects:
+  - {effect: "point_mass@[3.25,0.5,0.75]:mass", upper: 0.5, description: a cable clamp}
+  - {effect: j.krx, initial: 7, lower: 1, upper: 100, enable: true}
+)");
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  const EffectCandidate* clamp = nullptr;
+  for (const EffectCandidate& c : candidates)
+    if (c.description == "a cable clamp") clamp = &c;
+  ASSERT_TRUE(clamp);
+  EXPECT_TRUE(clamp->declared);
+  EXPECT_EQ(clamp->upper, 0.5);
+  EXPECT_EQ(clamp->name.rfind("added_mass_node", 0), 0u) << clamp->name;
+  const EffectCandidate* krx = Find(candidates, "j.krx");  // the declared one replaces the automatic one
+  ASSERT_TRUE(krx);
+  EXPECT_TRUE(krx->declared);
+  EXPECT_EQ(*krx->initial, 7);
+  EXPECT_EQ(krx->lower, 1);
+  const std::vector<EffectCandidate> enabled = enabled_candidates(problem);
+  ASSERT_EQ(enabled.size(), 1u);
+  EXPECT_EQ(enabled[0].name, "j.krx");
+
+  // By change text, with a start value, or by a candidate's name.
+  const EffectCandidate start = make_candidate(problem, "support@root:ky=50");
+  EXPECT_EQ(start.name, "support_root.ky");
+  EXPECT_EQ(*start.initial, 50);
+  const std::string sensor_mass =
+      "added_mass_node" + std::to_string(problem.model.node_ids[problem.sensors[0].node]) + ".mass";
+  EXPECT_EQ(make_candidate(problem, sensor_mass).name, sensor_mass);
+  EXPECT_THROW(make_candidate(problem, "nosuch.kx"), std::invalid_argument);
+  EXPECT_THROW(make_candidate(problem, "j.kx"), std::invalid_argument);  // calibrated already
+  try {
+    make_candidate(problem, "support@tip:kx");
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("is not fixed along x"), std::string::npos) << e.what();
+  }
+}
+
+TEST(EffectCandidates, ProblemWithEffectsAddsThemAsParameters) {
+  const Problem problem = LoadAssembly();
+  const EffectCandidate krx = make_candidate(problem, "j.krx");
+  const EffectCandidate mass = make_candidate(problem, "point_mass@tip:mass");
+  const Problem with = problem_with_effects(problem, {krx, mass}, {5.0, 0.0});
+  ASSERT_EQ(with.parameters.size(), 5u);
+  const Parameter& a = with.parameters[3];
+  EXPECT_EQ(a.name, "j.krx");
+  EXPECT_EQ(with.model.properties[a.targets[0]].name, "j.krx");
+  EXPECT_EQ(a.initial, 5.0);
+  EXPECT_EQ(a.scaling, Scaling::Log);                      // a positive value: searched in decades ...
+  EXPECT_EQ(a.lower, 5e-3);                                // ... down to a thousandth of it
+  EXPECT_EQ(with.parameters[4].scaling, Scaling::Linear);  // at 0: linear
+  EXPECT_EQ(with.parameters[4].lower, 0);
+  // The added parameter acts on the model as the change does.
+  Objective objective(with);
+  Vector p = with.initial_values();
+  const Evaluation e0 = objective.evaluate(p);
+  p[4] = 0.05;
+  const Evaluation e1 = objective.evaluate(p);
+  ASSERT_TRUE(e0.ok && e1.ok);
+  EXPECT_LT(e1.pairs[0].model_hz, e0.pairs[0].model_hz);  // mass at the tip lowers the first mode
+  EXPECT_THROW(problem_with_effects(problem, {krx}, {}), std::invalid_argument);
+}
+
+TEST(ChiSquare, CriticalValuesAndNoiseWeights) {
+  EXPECT_NEAR(chi_square_critical_value(0.01, 1), 6.634897, 1e-5);
+  EXPECT_NEAR(chi_square_critical_value(0.05, 1), 3.841459, 1e-5);
+  EXPECT_NEAR(chi_square_upper_tail(chi_square_critical_value(1e-4, 7), 7), 1e-4, 1e-9);
+  EXPECT_THROW(chi_square_critical_value(0, 1), std::invalid_argument);
+  // Twice the noise-weighted misfit is the residual test's chi-square to first order: where the
+  // residual is noise (errors of 0.2 %, not 10 %).
+  const Problem problem = WithHiddenEffect({}, 1);
+  const Problem weighted = noise_weighted(problem, *problem.measurement_noise);
+  Objective objective(weighted);
+  const Evaluation e = objective.evaluate(problem.truth_values());
+  ASSERT_TRUE(e.ok) << e.message;
+  const ResidualTest t = test_residual(objective, e, *problem.measurement_noise, 3);
+  EXPECT_NEAR(2 * e.value / t.statistic, 1.0, 0.03) << 2 * e.value << " vs " << t.statistic;
+  EXPECT_THROW(noise_weighted(problem, MeasurementNoise{0, 0.02, 1}), std::invalid_argument);
+}
+
+TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  Objective objective(problem);
+  const ReducedSummary calibration =
+      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
+  ASSERT_EQ(calibration.final.size(), 3);
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  const EffectRanking ranking = rank_effects(problem, calibration.final, candidates);
+  ASSERT_GE(ranking.effects.size(), 3u);
+  EXPECT_TRUE(ranking.noise_known);
+  EXPECT_GT(ranking.chi2_before, 10 * ranking.dof_before);
+  // A block scale whose modulus is calibrated adds nothing: set aside, not ranked.
+  const auto aside = std::find_if(ranking.set_aside.begin(), ranking.set_aside.end(),
+                                  [](const auto& s) { return s.first == "base.stiffness_scale"; });
+  ASSERT_NE(aside, ranking.set_aside.end());
+  EXPECT_EQ(aside->second, "the calibration parameters already do this");
+  EXPECT_EQ(ranking.screened + ranking.set_aside.size(), candidates.size());
+  // The hidden effect first, its value recovered, the residual down to the noise.
+  const RankedEffect& best = ranking.effects[0];
+  EXPECT_EQ(best.candidate.name, "j.krx");
+  EXPECT_TRUE(best.refitted);
+  EXPECT_TRUE(best.significant);
+  EXPECT_NEAR(best.value / 20, 1, 0.05);
+  EXPECT_LT(best.standard_error, 0.05 * best.value);
+  EXPECT_FALSE(best.model_form_error_after);
+  EXPECT_NEAR(best.achieved_reduction, ranking.chi2_before - best.chi2_after, 1e-9);
+  EXPECT_NEAR(best.delta_bic, best.achieved_reduction - std::log(ranking.num_data), 1e-9);
+  // The first-order prediction is of the right size (the effect is not small, so not exact).
+  EXPECT_NEAR(best.predicted_reduction / best.achieved_reduction, 1, 0.3);
+  // Refitted ones come first, by what they achieved; the rest by prediction.
+  for (size_t k = 1; k < ranking.effects.size(); ++k) {
+    const RankedEffect &a = ranking.effects[k - 1], &b = ranking.effects[k];
+    if (a.refitted && b.refitted) EXPECT_GE(a.achieved_reduction, b.achieved_reduction);
+    if (!a.refitted) EXPECT_FALSE(b.refitted);
+    if (!a.refitted) EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
+  }
+  EXPECT_EQ(std::count_if(ranking.effects.begin(), ranking.effects.end(), [](const auto& r) { return r.refitted; }),
+            RankingOptions().refits);
+  EXPECT_NE(format_effect_ranking(ranking).find("j.krx"), std::string::npos);
+}
+
+TEST(EffectRanking, AOneSidedEffectDoesNotHelpByANegativeValue) {
+  // The truth is lighter at the tip than the model: an added mass there could only help with a
+  // negative mass, which its bounds forbid, so its prediction is 0.
+  const Problem problem = noise_weighted(WithHiddenEffect({"top.mass_scale=0.9"}, 2), MeasurementNoise{0.002, 0.02, 2});
+  const EffectRanking ranking =
+      rank_effects(problem, problem.truth_values(),
+                   {make_candidate(problem, "point_mass@tip:mass"), make_candidate(problem, "top.mass_scale")}, [] {
+                     RankingOptions o;
+                     o.refits = 0;
+                     return o;
+                   }());
+  ASSERT_EQ(ranking.effects.size(), 2u);
+  EXPECT_EQ(ranking.effects[0].candidate.name, "top.mass_scale");
+  EXPECT_LT(ranking.effects[0].predicted_value, 1);
+  EXPECT_EQ(ranking.effects[1].predicted_reduction, 0);
+  EXPECT_EQ(ranking.effects[1].predicted_value, 0);
+}
+
+TEST(Diagnosis, FindsAHiddenMassAndLeavesACorrectModelAlone) {
+  const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1"}, 3);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  ASSERT_TRUE(d.before.test);
+  EXPECT_TRUE(d.before.test->model_form_error);
+  ASSERT_TRUE(d.localization);
+  EXPECT_GT(d.localization->total_energy, 0);
+  ASSERT_EQ(d.recommended, 0) << d.recommendation;
+  EXPECT_EQ(d.ranking.effects[0].candidate.name, "top.mass_scale") << format_diagnosis(hidden, d);
+  ASSERT_TRUE(d.after && d.after->test);
+  EXPECT_FALSE(d.after->test->model_form_error);
+  EXPECT_LT(d.after->statistic, d.before.statistic / 3);
+  EXPECT_EQ(d.after->parameter_names.back(), "top.mass_scale");
+  EXPECT_NE(d.recommendation.find("Add top.mass_scale"), std::string::npos) << d.recommendation;
+  const std::string report = format_diagnosis(hidden, d);
+  for (const char* part : {"residual test:", "where the model fails", "which effect is missing", "with effect [Hz]",
+                           "(added: mass multiplier of block top)"})
+    EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
+
+  const Problem control = WithHiddenEffect({}, 4);
+  const Diagnosis c = diagnose(control, control.initial_values());
+  ASSERT_TRUE(c.before.test);
+  EXPECT_FALSE(c.before.test->model_form_error) << c.before.test->verdict;
+  EXPECT_EQ(c.recommended, -1);
+  EXPECT_FALSE(c.after);
+  EXPECT_NE(c.recommendation.find("No model-form error"), std::string::npos);
+}
+
+TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {
+  Problem problem = WithHiddenEffect({"j.krx=20"}, 5);
+  problem.measurement_noise.reset();
+  DiagnosisOptions options;
+  options.ranking.refits = 1;
+  const Diagnosis d = diagnose(problem, problem.truth_values(), options);
+  EXPECT_FALSE(d.noise_known);
+  EXPECT_FALSE(d.before.test);
+  EXPECT_FALSE(d.ranking.noise_known);
+  ASSERT_EQ(d.recommended, 0) << d.recommendation;
+  EXPECT_EQ(d.ranking.effects[0].candidate.name, "j.krx");
+  EXPECT_TRUE(std::isnan(d.ranking.effects[0].standard_error));
+  EXPECT_NE(d.recommendation.find("Without a stated noise"), std::string::npos) << d.recommendation;
+}
+
+TEST(Diagnosis, BeforeAfterTableHasEveryModeAndBothVerdicts) {
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 6), MeasurementNoise{0.002, 0.02, 6});
+  const EffectCandidate krx = make_candidate(problem, "j.krx");
+  const Problem with = problem_with_effects(problem, {krx}, {20});
+  Vector p(4);
+  p << problem.truth_values(), 20;
+  const FitState before = evaluate_fit(problem, problem.truth_values()), after = evaluate_fit(with, p);
+  ASSERT_TRUE(before.test && after.test);
+  EXPECT_TRUE(before.test->model_form_error);
+  EXPECT_FALSE(after.test->model_form_error);
+  const std::string table = format_before_after(with, before, after);
+  EXPECT_EQ(std::count(table.begin(), table.end(), '|'), 2 * 7 + 2);  // header and seven modes
+  EXPECT_NE(table.find("j.krx"), std::string::npos);
+  EXPECT_NE(table.find("before: chi-square"), std::string::npos);
+  EXPECT_NE(table.find("after: chi-square"), std::string::npos);
+  EXPECT_THROW(evaluate_fit(with, problem.truth_values()), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace modalcal
