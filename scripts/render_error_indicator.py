@@ -10,6 +10,8 @@ import sys
 
 import vtk
 
+from vtk_panels import write_panels_png
+
 png_path = sys.argv[1]
 views = list(zip(sys.argv[2::2], sys.argv[3::2]))
 if not views:
@@ -75,19 +77,4 @@ def view(grid_path, title):
     return renderer
 
 
-window = vtk.vtkRenderWindow()
-window.SetOffScreenRendering(1)
-window.SetSize(600 * len(views), 650)
-for k, (grid_path, title) in enumerate(views):
-    renderer = view(grid_path, title)
-    renderer.SetViewport(k / len(views), 0, (k + 1) / len(views), 1)
-    window.AddRenderer(renderer)
-window.Render()
-image = vtk.vtkWindowToImageFilter()
-image.SetInput(window)
-image.Update()
-writer = vtk.vtkPNGWriter()
-writer.SetFileName(png_path)
-writer.SetInputConnection(image.GetOutputPort())
-writer.Write()
-print(f"wrote {png_path}")
+write_panels_png([view(path, title) for path, title in views], png_path, 600, 650)

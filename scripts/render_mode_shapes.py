@@ -15,6 +15,8 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 
+from vtk_panels import write_panels_png
+
 if len(sys.argv) < 4:
     sys.exit(__doc__)
 png_path, grid_path, modes = sys.argv[1], sys.argv[2], [int(m) for m in sys.argv[3:]]
@@ -131,20 +133,4 @@ def panel(mode):
     return renderer
 
 
-window = vtk.vtkRenderWindow()
-window.SetOffScreenRendering(1)
-width = 520
-window.SetSize(width * len(modes), 480)
-for k, mode in enumerate(modes):
-    r = panel(mode)
-    r.SetViewport(k / len(modes), 0, (k + 1) / len(modes), 1)
-    window.AddRenderer(r)
-window.Render()
-image = vtk.vtkWindowToImageFilter()
-image.SetInput(window)
-image.Update()
-writer = vtk.vtkPNGWriter()
-writer.SetFileName(png_path)
-writer.SetInputConnection(image.GetOutputPort())
-writer.Write()
-print(f"wrote {png_path}")
+write_panels_png([panel(mode) for mode in modes], png_path, 520, 480)
