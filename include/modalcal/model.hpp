@@ -61,6 +61,10 @@ struct NodeSet {
   std::vector<int> nodes;  ///< node indices, sorted, unique
 };
 
+/// Names of the six spring components, in the order of Joint::stiffness and
+/// GroundSpring::stiffness: translations along, then rotations about, x, y, z.
+inline const std::vector<std::string> kStiffnessComponentNames{"kx", "ky", "kz", "krx", "kry", "krz"};
+
 /// Two-node six-component spring in a local frame (Sierra-SD Joint2G). Components are
 /// kx, ky, kz (translations) and krx, kry, krz (rotations) along/about the frame's rows.
 /// Rotational components need both nodes to carry rotations.

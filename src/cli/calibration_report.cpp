@@ -83,8 +83,6 @@ nlohmann::json history_json(const std::vector<IterationRecord>& records) {
   return history;
 }
 
-// JSON has no NaN: unknown numbers are null.
-nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
 
 }  // namespace
 
@@ -101,7 +99,7 @@ nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summar
           {"linear_solves", summary.linear_solves},
           {"failed_evaluations", summary.failed_evaluations},
           {"time_s", summary.seconds},
-          {"convergence_order", number(summary.convergence_order)},
+          {"convergence_order", json_number(summary.convergence_order)},
           {"history", history_json(summary.history)}};
   add_hidden_effect(problem, &json);
   return json;
@@ -117,8 +115,8 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
                         {"complementarity", r.complementarity},
                         {"kkt_error", r.kkt_error()},
                         {"mu", r.mu},
-                        {"parameter_error", number(r.parameter_error)},
-                        {"guard_min_mac", number(r.min_mac)}};
+                        {"parameter_error", json_number(r.parameter_error)},
+                        {"guard_min_mac", json_number(r.min_mac)}};
     kkt.push_back(k);
     // The common history: the full-space "gradient norm" is the dual infeasibility (the
     // gradient of the Lagrangian), iterations numbered after the globalization.
@@ -144,7 +142,7 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
           {"globalization_iterations", summary.globalization_iterations},
           {"restarts", summary.restarts},
           {"initial_objective", summary.initial_objective},
-          {"final_objective", number(summary.final_objective)},
+          {"final_objective", json_number(summary.final_objective)},
           {"forward_solves", summary.forward_solves},
           {"kkt_solves", summary.kkt_solves},
           {"unknowns", summary.num_unknowns},
@@ -152,7 +150,7 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
           {"time_s", summary.seconds},
           {"ipopt_time_s", summary.ipopt_seconds},
           {"guard_time_s", summary.guard_seconds},
-          {"convergence_order", number(summary.convergence_order)},
+          {"convergence_order", json_number(summary.convergence_order)},
           {"mode_check", check},
           {"kkt_history", kkt},
           {"history", global}};

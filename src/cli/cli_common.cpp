@@ -143,6 +143,8 @@ std::string hidden_effect_text(const Problem& problem) {
   return problem.synthetic_truth ? hidden_effect_text(*problem.synthetic_truth, problem.measured_file) : "";
 }
 
+nlohmann::json json_number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
   if (path.empty()) return;
   write_file_atomically(path, json.dump(2) + "\n", {problem.path});

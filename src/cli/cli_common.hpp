@@ -39,6 +39,8 @@ void print_warnings(const Problem& problem);
 
 /// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
+/// JSON has no NaN or infinity: a number that is not finite (unknown, undefined) is written as null.
+nlohmann::json json_number(double value);
 
 /// Adds `hidden_effect: [{name, description, value, nominal_value}]` to `json` when the truth the
 /// measured modes came from is known (an empty list: the nominal model form is right), and

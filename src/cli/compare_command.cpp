@@ -27,14 +27,12 @@ struct CompareArgs {
   std::string mac_plot, error_plot;
 };
 
-// JSON has no NaN: undefined numbers are null.
-nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
 
 nlohmann::json matrix_json(const Matrix& m) {
   nlohmann::json rows = nlohmann::json::array();
   for (Eigen::Index i = 0; i < m.rows(); ++i) {
     nlohmann::json row = nlohmann::json::array();
-    for (Eigen::Index k = 0; k < m.cols(); ++k) row.push_back(number(m(i, k)));
+    for (Eigen::Index k = 0; k < m.cols(); ++k) row.push_back(json_number(m(i, k)));
     rows.push_back(row);
   }
   return rows;
@@ -141,7 +139,7 @@ int run_compare(const CompareArgs& args) {
                              {"model_hz", pair.model_hz},
                              {"error_percent", pair.error_percent},
                              {"mac", pair.mac >= 0 ? nlohmann::json(pair.mac) : nlohmann::json()},
-                             {"cross_orthogonality", number(pair.cross_orthogonality)}});
+                             {"cross_orthogonality", json_number(pair.cross_orthogonality)}});
   json["unpaired_mac"] = options.unpaired_mac;
   json["unpaired_measured"] = nlohmann::json::array();
   for (int index : c.unpaired_measured)
@@ -159,7 +157,7 @@ int run_compare(const CompareArgs& args) {
     json["comac"].push_back({{"sensor", sensor.label},
                              {"node", problem.model.node_ids[sensor.node]},
                              {"direction", component_name(sensor.component)},
-                             {"comac", number(c.comac[s])}});
+                             {"comac", json_number(c.comac[s])}});
   }
   if (c.cross_orthogonality.size() > 0) {
     nlohmann::json rows = nlohmann::json::array(), columns = nlohmann::json::array();

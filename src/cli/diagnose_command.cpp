@@ -27,7 +27,6 @@ struct DiagnoseArgs {
   bool quiet = false;
 };
 
-nlohmann::json number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
 nlohmann::json residual_json(const FitState& fit) {
   nlohmann::json json = {{"statistic", fit.statistic}};
@@ -41,7 +40,7 @@ nlohmann::json residual_json(const FitState& fit) {
                            {"model_mode", pair.model + 1},
                            {"model_hz", pair.model_hz},
                            {"error_percent", 100 * (pair.model_hz / pair.measured_hz - 1)},
-                           {"mac", number(pair.mac)}};
+                           {"mac", json_number(pair.mac)}};
     if (fit.test)
       for (const ModeResidual& m : fit.test->modes)
         if (m.measured == pair.measured) {
@@ -117,12 +116,12 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                                {"change", to_string(r.candidate.change)},
                                {"variable", variable_name(r.candidate.variable)},
                                {"predicted_reduction", r.predicted_reduction},
-                               {"predicted_value", number(r.predicted_value)},
+                               {"predicted_value", json_number(r.predicted_value)},
                                {"refitted", r.refitted},
-                               {"achieved_reduction", number(r.achieved_reduction)},
-                               {"value", number(r.refitted ? r.value : r.predicted_value)},
-                               {"chi2_after", number(r.chi2_after)},
-                               {"delta_bic", number(r.delta_bic)},
+                               {"achieved_reduction", json_number(r.achieved_reduction)},
+                               {"value", json_number(r.refitted ? r.value : r.predicted_value)},
+                               {"chi2_after", json_number(r.chi2_after)},
+                               {"delta_bic", json_number(r.delta_bic)},
                                {"significant", r.significant}});
   }
   json["set_aside"] = nlohmann::json::array();

@@ -165,8 +165,8 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
                           {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
                           {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
                           {"start_parameters", std::vector<double>(starts[s].data(), starts[s].data() + starts[s].size())}};
-      j["order"] = std::isfinite(r.order) ? nlohmann::json(r.order) : nlohmann::json();
-      j["parameter_error"] = std::isfinite(r.error) ? nlohmann::json(r.error) : nlohmann::json();
+      j["order"] = json_number(r.order);
+      j["parameter_error"] = json_number(r.error);
       json_runs.push_back(j);
     }
   }
@@ -194,14 +194,13 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
     std::printf("%-15s %4d/%-4zu %12.1f %12.1f %8.1f %8.1f %10.2f %10.1f %9.0f %7.2f\n", args.methods[m].c_str(),
                 successes, runs[m].size(), median(iterations), median(extra), median(solves), median(kkt),
                 median(seconds), total, peak, median(orders));
-    auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
     summary[args.methods[m]] = {{"successes", successes},           {"runs", runs[m].size()},
-                                {"median_iterations", number(median(iterations))},
-                                {"median_globalization_iterations", number(median(extra))},
-                                {"median_forward_solves", number(median(solves))},
-                                {"median_kkt_solves", number(median(kkt))},
-                                {"median_seconds", number(median(seconds))}, {"total_seconds", total},
-                                {"peak_mb", peak},                  {"median_order", number(median(orders))}};
+                                {"median_iterations", json_number(median(iterations))},
+                                {"median_globalization_iterations", json_number(median(extra))},
+                                {"median_forward_solves", json_number(median(solves))},
+                                {"median_kkt_solves", json_number(median(kkt))},
+                                {"median_seconds", json_number(median(seconds))}, {"total_seconds", total},
+                                {"peak_mb", peak},                  {"median_order", json_number(median(orders))}};
     // The histories from the problem's own start, together.
     const Run& first = runs[m].front();
     PlotSeries o{args.methods[m], {}, {}}, g{args.methods[m], {}, {}};

@@ -16,7 +16,6 @@ namespace modalcal {
 
 namespace {
 
-const char* const kStiffnessKeys[6] = {"kx", "ky", "kz", "krx", "kry", "krz"};
 
 /// Stiffness, mass and element size of the blocks, and which blocks each node belongs to: the
 /// magnitudes the candidates' references and bounds are made of.
@@ -120,10 +119,10 @@ class CandidateFactory {
   std::optional<EffectCandidate> from_change(ModelChange change, std::string* why) const {
     const bool stiffness =
         change.kind != ModelChange::Kind::AddPointMass &&
-        std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys), change.property) != std::end(kStiffnessKeys);
+        std::find(std::begin(kStiffnessComponentNames), std::end(kStiffnessComponentNames), change.property) != std::end(kStiffnessComponentNames);
     const int component =
-        stiffness ? static_cast<int>(std::find(std::begin(kStiffnessKeys), std::end(kStiffnessKeys), change.property) -
-                                     std::begin(kStiffnessKeys))
+        stiffness ? static_cast<int>(std::find(std::begin(kStiffnessComponentNames), std::end(kStiffnessComponentNames), change.property) -
+                                     std::begin(kStiffnessComponentNames))
                   : -1;
     // Apply it with a harmless value to learn its name, words, nominal value and nodes.
     change.value = change.property == "nu" ? 0.25 : 1;
@@ -219,12 +218,12 @@ class CandidateFactory {
         for (const char* property : {"stiffness_scale", "mass_scale"}) add(b.name + "." + property);
     if (options_.joints) {
       for (const Joint& j : model_.joints)
-        for (const char* key : kStiffnessKeys)
-          if (std::string(key).size() == 2 || (model_.has_rotations[j.node_a] && model_.has_rotations[j.node_b]))
+        for (const std::string& key : kStiffnessComponentNames)
+          if (key.size() == 2 || (model_.has_rotations[j.node_a] && model_.has_rotations[j.node_b]))
             add(j.name + "." + key);
       for (const GroundSpring& s : model_.ground_springs)
         for (int c = 0; c < 6; ++c)
-          if (s.stiffness[c] != kNoProperty) add(s.name + "." + kStiffnessKeys[c]);
+          if (s.stiffness[c] != kNoProperty) add(s.name + "." + kStiffnessComponentNames[c]);
       std::set<std::string> masses;
       for (const PointMass& m : model_.point_masses)
         if (m.mass != kNoProperty && masses.insert(model_.properties[m.mass].name).second)
@@ -241,12 +240,12 @@ class CandidateFactory {
         }
       if (options_.node_sets && (any_free[0] || any_free[1] || any_free[2])) {
         for (int c = 0; c < 3; ++c)
-          if (any_free[c]) add("spring@" + node_set_place(set) + ":" + kStiffnessKeys[c]);
+          if (any_free[c]) add("spring@" + node_set_place(set) + ":" + kStiffnessComponentNames[c]);
         add("point_mass@" + node_set_place(set) + ":mass");
       }
       if (options_.supports && !set.nodes.empty())
         for (int c = 0; c < 6; ++c)
-          if (all_fixed[c]) add("support@" + node_set_place(set) + ":" + kStiffnessKeys[c]);
+          if (all_fixed[c]) add("support@" + node_set_place(set) + ":" + kStiffnessComponentNames[c]);
     }
     if (options_.sensor_masses) {
       std::set<int> nodes;
@@ -310,7 +309,7 @@ class CandidateFactory {
                                  format_round_trip(best) + " apart";
         for (int c = 0; c < 3; ++c)
           changes->emplace_back(parse_model_change("joint@" + node_place(model_, pair.first) + "/" +
-                                                   node_place(model_, pair.second) + ":" + kStiffnessKeys[c] + "=1"),
+                                                   node_place(model_, pair.second) + ":" + kStiffnessComponentNames[c] + "=1"),
                                 note);
       }
   }

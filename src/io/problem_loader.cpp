@@ -28,7 +28,6 @@ namespace modalcal {
 
 namespace {
 
-const std::vector<std::string> kStiffnessKeys{"kx", "ky", "kz", "krx", "kry", "krz"};
 const std::vector<std::string> kInertiaKeys{"Ixx", "Iyy", "Izz"};
 const std::vector<std::string> kDirections{"x", "y", "z"};
 
@@ -69,7 +68,7 @@ std::string describe(const YAML::Node& node) {
 }
 
 std::vector<std::string> with_stiffness(std::vector<std::string> keys) {
-  keys.insert(keys.end(), kStiffnessKeys.begin(), kStiffnessKeys.end());
+  keys.insert(keys.end(), kStiffnessComponentNames.begin(), kStiffnessComponentNames.end());
   return keys;
 }
 
@@ -689,7 +688,7 @@ std::array<PropertyId, 6> Loader::stiffness(const std::string& entity, const Fie
   std::array<PropertyId, 6> ids;
   ids.fill(kNoProperty);
   for (int c = 0; c < 6; ++c)
-    if (const Field* k = fs.find(kStiffnessKeys[c]))
+    if (const Field* k = fs.find(kStiffnessComponentNames[c]))
       ids[c] = add_property(entity + "." + k->key, *k, non_negative(*k));
   return ids;
 }
@@ -841,18 +840,18 @@ PropertyId Loader::target(const Field& f) {
 
   const Entity& e = it->second;
   const bool has_components = e.kind == EntityKind::Joint || e.kind == EntityKind::Spring;
-  if (has_components && contains(kStiffnessKeys, property)) {
+  if (has_components && contains(kStiffnessComponentNames, property)) {
     // An absent component is zero; calibrating it needs the property to exist.
     const PropertyId id = add_property(name, f, 0.0);
     const auto c =
-        std::find(kStiffnessKeys.begin(), kStiffnessKeys.end(), property) - kStiffnessKeys.begin();
+        std::find(kStiffnessComponentNames.begin(), kStiffnessComponentNames.end(), property) - kStiffnessComponentNames.begin();
     (e.kind == EntityKind::Joint ? model_.joints[e.index].stiffness
                                  : model_.ground_springs[e.index].stiffness)[c] = id;
     return id;
   }
   std::vector<std::string> properties;
   if (has_components)
-    properties = kStiffnessKeys;
+    properties = kStiffnessComponentNames;
   else
     for (const Property& p : model_.properties)
       if (p.name.rfind(entity + ".", 0) == 0)

@@ -12,7 +12,6 @@ namespace modalcal {
 
 namespace {
 
-const std::vector<std::string> kStiffnessKeys{"kx", "ky", "kz", "krx", "kry", "krz"};
 const std::vector<std::string> kInertiaKeys{"Ixx", "Iyy", "Izz"};
 const char* const kAxes[3] = {"x", "y", "z"};
 
@@ -180,7 +179,7 @@ std::vector<std::string> settable_properties(const Model& model, EntityRef e) {
     }
     case EntityKind::Joint:
     case EntityKind::Spring:
-      return kStiffnessKeys;
+      return kStiffnessComponentNames;
     case EntityKind::PointMass:
       return {"mass", "Ixx", "Iyy", "Izz"};
     case EntityKind::None:
@@ -201,9 +200,9 @@ std::vector<PropertyId*> property_slots(Model& model, EntityRef e, const std::st
       return {property == "E" || property == "K" ? &b.modulus_a : &b.modulus_b};
     }
     case EntityKind::Joint:
-      return {&model.joints[e.index].stiffness[index_of(kStiffnessKeys, property)]};
+      return {&model.joints[e.index].stiffness[index_of(kStiffnessComponentNames, property)]};
     case EntityKind::Spring:
-      return {&model.ground_springs[e.index].stiffness[index_of(kStiffnessKeys, property)]};
+      return {&model.ground_springs[e.index].stiffness[index_of(kStiffnessComponentNames, property)]};
     case EntityKind::PointMass: {
       std::vector<PropertyId*> slots;
       const std::string name = model.point_masses[e.index].name;
@@ -238,7 +237,7 @@ std::string component_words(int c) {
 
 std::string property_words(EntityKind kind, const std::string& property) {
   if (kind == EntityKind::Joint || kind == EntityKind::Spring) {
-    const int c = index_of(kStiffnessKeys, property);
+    const int c = index_of(kStiffnessComponentNames, property);
     return c >= 0 ? component_words(c) : property;
   }
   if (kind == EntityKind::PointMass) {
@@ -389,7 +388,7 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
   for (const NodePlace& p : change.places) places.push_back(resolve(model, p, text));
   const bool is_mass = change.kind == ModelChange::Kind::AddPointMass;
   const bool is_support = change.kind == ModelChange::Kind::FlexibleSupport;
-  const std::vector<std::string> keys = is_mass ? std::vector<std::string>{"mass", "Ixx", "Iyy", "Izz"} : kStiffnessKeys;
+  const std::vector<std::string> keys = is_mass ? std::vector<std::string>{"mass", "Ixx", "Iyy", "Izz"} : kStiffnessComponentNames;
   const int component = index_of(keys, change.property);
   if (component < 0)
     fail(text, "an added " + std::string(is_mass ? "point mass" : kind_keyword(change.kind)) + " has no property '" +
