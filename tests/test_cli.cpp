@@ -3,10 +3,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "test_util.hpp"
 
@@ -169,10 +172,29 @@ TEST(Cli, LocalizeWithoutMeasuredShapesIsAnInputError) {
   EXPECT_NE(run.output.find("no measured mode has a shape"), std::string::npos) << run.output;
 }
 
+/// Rows of a CSV file split at commas (the tested files have no quoted cells).
+std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> cells(1);
+    for (char c : line) {
+      if (c == ',')
+        cells.emplace_back();
+      else
+        cells.back().push_back(c);
+    }
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
 TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   const std::string json_path = WriteTempFile("report.json", "");
-  const CliRun run =
-      RunCli("calibrate " + testing::SourcePath("problems/portal-frame/synthetic.yaml") + " --quiet --json " + json_path);
+  const std::string dir = std::filesystem::path(json_path).parent_path().string();
+  const CliRun run = RunCli("calibrate " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
+                            " --quiet --json " + json_path + " --csv " + dir + "/report --history-plot " + dir +
+                            "/history.svg");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("measured"), std::string::npos) << run.output;  // the mode table
   const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
@@ -194,6 +216,25 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
     EXPECT_NEAR(p["final"].get<double>() / p["truth"].get<double>(), 1.0, 1e-6) << p["name"];
   }
   for (const auto& m : j["modes"]) EXPECT_GT(m["mac"].get<double>(), 0.999);
+
+  // The CSV tables hold the JSON's rows: one per parameter, measured mode and iteration.
+  const auto parameters = ReadCsv(dir + "/report_parameters.csv");
+  ASSERT_EQ(parameters.size(), j["parameters"].size() + 1);
+  EXPECT_EQ(parameters[0], (std::vector<std::string>{"name", "initial", "final", "truth", "error_percent", "lower",
+                                                      "upper"}));
+  for (size_t k = 0; k < j["parameters"].size(); ++k) {
+    EXPECT_EQ(parameters[k + 1][0], j["parameters"][k]["name"]);
+    EXPECT_NEAR(std::stod(parameters[k + 1][2]) / j["parameters"][k]["final"].get<double>(), 1, 1e-9);
+    EXPECT_LT(std::abs(std::stod(parameters[k + 1][4])), 1e-4);  // error in percent
+  }
+  const auto modes = ReadCsv(dir + "/report_modes.csv");
+  ASSERT_EQ(modes.size(), j["modes"].size() + 1);
+  EXPECT_EQ(modes[0][2], "measured_hz");
+  EXPECT_NEAR(std::stod(modes[1][3]), j["modes"][0]["predicted_hz"].get<double>(), 1e-6);
+  const auto history = ReadCsv(dir + "/report_history.csv");
+  ASSERT_EQ(history.size(), j["history"].size() + 1);
+  EXPECT_EQ(history.back()[1], "newton");
+  EXPECT_NE(ReadFile(dir + "/history.svg").find("<svg"), std::string::npos);
 }
 
 TEST(Cli, ImportTestDataPrintsTheFileAndMapsOntoAProblem) {

@@ -28,6 +28,8 @@ struct CalibrateArgs {
   bool no_bounds = false;
   std::string json;
   std::string vtu;
+  std::string csv;           // prefix of the CSV tables
+  std::string history_plot;  // .png or .svg
   double refine = 0;
   int max_iterations = 100;
   double start_factor = 1;
@@ -122,6 +124,17 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
   return {report, final, usable};
 }
 
+/// The report's files other than the VTU set: JSON, CSV tables, convergence plot.
+void write_outputs(const CalibrateArgs& args, const nlohmann::json& report, const Problem& problem) {
+  write_json(args.json, report, problem);
+  if (!args.csv.empty())
+    for (const std::string& path : write_csv_report(args.csv, report, problem)) std::printf("wrote %s\n", path.c_str());
+  if (!args.history_plot.empty()) {
+    plot_history(args.history_plot, report, problem);
+    std::printf("wrote %s\n", args.history_plot.c_str());
+  }
+}
+
 /// Calibrates without the effects, then with them (started from the first calibration and the
 /// effects' first-order values), and reports both side by side. With a stated noise both fits
 /// minimize the chi-square (noise_weighted), as diagnose does.
@@ -187,7 +200,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
   };
   json["residual_before"] = residual(fit_before);
   json["residual_after"] = residual(fit_after);
-  write_json(args.json, json, problem);
+  write_outputs(args, json, problem);
   return 0;
 }
 
@@ -209,7 +222,7 @@ int run_calibrate(const CalibrateArgs& args) {
   Objective objective(problem, objective_options);
   const Calibrated result = calibrate(objective, p0, args);
   std::fputs(result.report.text.c_str(), stdout);
-  write_json(args.json, result.report.json(), problem);
+  write_outputs(args, result.report.json(), problem);
   if (!args.vtu.empty() && result.usable) {
     // The calibrated model for ParaView: blocks with their calibrated properties, the computed
     // modes at the final parameters, and the measured shapes at the sensors.
@@ -236,6 +249,10 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"none", "linear", "log"}));
   cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
   cmd->add_option("--json", args->json, "write the report as JSON to this file");
+  cmd->add_option("--csv", args->csv,
+                  "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
+  cmd->add_option("--history-plot", args->history_plot,
+                  "plot objective and gradient norm against iteration to this .png or .svg file");
   cmd->add_option("--vtu", args->vtu,
                   "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
                   "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");

@@ -2,8 +2,12 @@
 
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <utility>
 
 #include "cli/cli_common.hpp"
+#include "modalcal/output.hpp"
+#include "modalcal/plot.hpp"
 
 namespace modalcal::cli {
 
@@ -83,8 +87,77 @@ nlohmann::json history_json(const std::vector<IterationRecord>& records) {
   return history;
 }
 
+/// One CSV cell: numbers at full precision, strings quoted when they need it, empty if absent.
+std::string csv_cell(const nlohmann::json& entry, const char* key) {
+  if (!entry.contains(key) || entry[key].is_null()) return "";
+  const nlohmann::json& v = entry[key];
+  if (v.is_number()) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.10g", v.get<double>());
+    return buffer;
+  }
+  const std::string text = v.is_string() ? v.get<std::string>() : v.dump();
+  if (text.find_first_of(",\"\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+std::string csv_table(const nlohmann::json& rows, const std::vector<const char*>& columns) {
+  std::string out;
+  for (size_t c = 0; c < columns.size(); ++c) out += std::string(c ? "," : "") + columns[c];
+  out += "\n";
+  for (const nlohmann::json& row : rows) {
+    for (size_t c = 0; c < columns.size(); ++c) out += (c ? "," : "") + csv_cell(row, columns[c]);
+    out += "\n";
+  }
+  return out;
+}
 
 }  // namespace
+
+std::vector<std::string> write_csv_report(const std::string& prefix, const nlohmann::json& report,
+                                          const Problem& problem) {
+  nlohmann::json parameters = report.value("parameters", nlohmann::json::array());
+  for (nlohmann::json& p : parameters)
+    if (p.contains("truth") && p["final"].is_number())
+      p["error_percent"] = 100 * (p["final"].get<double>() / p["truth"].get<double>() - 1);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {prefix + "_parameters.csv",
+       csv_table(parameters, {"name", "initial", "final", "truth", "error_percent", "lower", "upper"})},
+      {prefix + "_modes.csv", csv_table(report.value("modes", nlohmann::json::array()),
+                                        {"label", "model_mode", "measured_hz", "predicted_hz", "error_percent", "mac"})},
+      {prefix + "_history.csv", csv_table(report.value("history", nlohmann::json::array()),
+                                          {"iteration", "phase", "objective", "gradient_norm"})}};
+  for (const auto& file : files) check_not_input(file.first, {problem.path});
+  std::vector<std::string> paths;
+  for (const auto& file : files) {
+    write_file_atomically(file.first, file.second, {problem.path});
+    paths.push_back(file.first);
+  }
+  return paths;
+}
+
+void plot_history(const std::string& path, const nlohmann::json& report, const Problem& problem) {
+  check_not_input(path, {problem.path});
+  PlotSeries objective{"objective", {}, {}}, gradient{"gradient norm", {}, {}};
+  for (const nlohmann::json& h : report.value("history", nlohmann::json::array())) {
+    const double iteration = h["iteration"].get<double>();
+    // Log axes: a zero (an exact fit) cannot be drawn and is left out.
+    if (h["objective"].is_number() && h["objective"].get<double>() > 0) {
+      objective.x.push_back(iteration);
+      objective.y.push_back(h["objective"].get<double>());
+    }
+    if (h["gradient_norm"].is_number() && h["gradient_norm"].get<double>() > 0) {
+      gradient.x.push_back(iteration);
+      gradient.y.push_back(h["gradient_norm"].get<double>());
+    }
+  }
+  if (objective.x.empty()) throw std::runtime_error("--history-plot " + path + ": the run recorded no iterations");
+  const std::string method = report.value("method", std::string("calibration"));
+  plot_panels(path, method + ": " + problem.name, "iteration",
+              {PlotPanel{"objective J", true, {objective}}, PlotPanel{"gradient norm", true, {gradient}}});
+}
 
 nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summary) {
   nlohmann::json json = {{"problem", problem.path},
