@@ -237,6 +237,33 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   EXPECT_NE(ReadFile(dir + "/history.svg").find("<svg"), std::string::npos);
 }
 
+// The multi-start study with two runs at a time: every (start, method) pair reported once, in
+// order, judged against the truth (the propped cantilever converges from every start).
+TEST(Cli, FullVsReducedStudyRunsEveryStartAndMethodInParallel) {
+  const std::string json_path = WriteTempFile("study.json", "");
+  const std::string dir = std::filesystem::path(json_path).parent_path().string() + "/study";
+  const CliRun run = RunCli("study full-vs-reduced " + testing::SourcePath("problems/propped-cantilever/synthetic.yaml") +
+                            " --starts 2 --seed 3 --jobs 2 --methods fullspace reduced-lbfgs --out " + dir +
+                            " --json " + json_path);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
+  ASSERT_EQ(j["runs"].size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    const auto& r = j["runs"][k];
+    EXPECT_EQ(r["start"], k / 2);
+    EXPECT_EQ(r["method"], k % 2 ? "reduced-lbfgs" : "fullspace");
+    EXPECT_TRUE(r["success"].get<bool>()) << r.dump();
+    EXPECT_LT(r["parameter_error"].get<double>(), 1e-4);
+    EXPECT_EQ(r["start_parameters"], j["runs"][k - k % 2]["start_parameters"]);  // both methods, same start
+  }
+  EXPECT_NE(j["runs"][0]["start_parameters"], j["runs"][2]["start_parameters"]);
+  EXPECT_EQ(j["methods"]["fullspace"]["successes"], 3);
+  EXPECT_EQ(j["methods"]["reduced-lbfgs"]["successes"], 3);
+  EXPECT_TRUE(std::filesystem::file_size(dir + "/full_vs_reduced.png") > 0);
+  for (const auto& entry : std::filesystem::directory_iterator(dir))  // no run reports left behind
+    EXPECT_EQ(entry.path().extension(), ".png") << entry.path();
+}
+
 TEST(Cli, ImportTestDataPrintsTheFileAndMapsOntoAProblem) {
   const std::string uff = testing::SourcePath("tests/data/uff/uff55_translation.uff");
   const std::string problem = WriteTempFile("bar.yaml", kBar);

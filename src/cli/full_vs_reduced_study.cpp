@@ -11,9 +11,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -31,6 +35,7 @@ struct FullVsReducedArgs {
   std::string json;
   double refine = 0;
   int starts = 10;
+  int jobs = 1;  // runs at a time
   unsigned seed = 1;
   double success_tolerance = 1e-4;
   std::vector<std::string> methods{"fullspace", "reduced-lbfgs", "reduced-newton"};
@@ -53,9 +58,9 @@ double median(std::vector<double> v) {
 }
 
 // One calibration in a child process: this program's own `calibrate` (a fork alone is not
-// safe once BLAS or OpenMP threads exist), its report JSON read back.
-Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method, const Vector& start,
-                 const std::string& report_path) {
+// safe once BLAS or OpenMP threads exist), started here and read back by read_report.
+pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method,
+                     const Vector& start, const std::string& report_path) {
   // Variants of the full-space method without its safeguards, to measure what each one buys.
   const bool full = method.rfind("fullspace", 0) == 0;
   std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method",
@@ -81,17 +86,23 @@ Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const st
   argv.push_back(nullptr);
   std::filesystem::remove(report_path);
   std::fflush(stdout);
-  Run run;
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork() failed");
   if (pid == 0) {
     if (!freopen("/dev/null", "w", stdout)) _exit(127);
+    // Parallel runs share the cores: one BLAS thread each, unless the user chose otherwise.
+    if (args.jobs > 1) setenv("OPENBLAS_NUM_THREADS", "1", 0);
     execv(argv[0], argv.data());
     _exit(127);
   }
-  int status = 0;
-  struct rusage usage {};
-  wait4(pid, &status, 0, &usage);
+  return pid;
+}
+
+// The finished child's report, judged against the truth.
+Run read_report(const FullVsReducedArgs& args, const Problem& problem, const std::string& method,
+                const std::string& report_path, int status, const struct rusage& usage) {
+  const bool full = method.rfind("fullspace", 0) == 0;
+  Run run;
   run.peak_mb = usage.ru_maxrss / 1024.0;
   if (!std::filesystem::exists(report_path)) {
     run.status = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status))
@@ -100,6 +111,8 @@ Run run_isolated(const FullVsReducedArgs& args, const Problem& problem, const st
   }
   std::ifstream in(report_path);
   const nlohmann::json j = nlohmann::json::parse(in);
+  in.close();
+  std::filesystem::remove(report_path);
   const Vector truth = problem.truth_values();
   double error = 0;
   for (size_t k = 0; k < problem.parameters.size(); ++k) {
@@ -148,27 +161,54 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   std::printf("\n");
 
   std::filesystem::create_directories(args.out);
-  const std::string report_path = (std::filesystem::path(args.out) / "full_vs_reduced_run.json").string();
-  std::vector<std::vector<Run>> runs(args.methods.size());
-  nlohmann::json json_runs = nlohmann::json::array();
-  for (size_t s = 0; s < starts.size(); ++s) {
-    for (size_t m = 0; m < args.methods.size(); ++m) {
-      const Run r = run_isolated(args, problem, args.methods[m], starts[s], report_path);
-      runs[m].push_back(r);
-      std::printf("start %2zu %-15s %-9s %-20s its %3d+%-3d error %.2e  %.2f s  %.0f MB\n", s, args.methods[m].c_str(),
-                  r.success ? "success" : "failure", r.status.c_str(), r.extra_iterations, r.iterations, r.error,
-                  r.seconds, r.peak_mb);
-      std::fflush(stdout);
-      nlohmann::json j = {{"start", s},          {"method", args.methods[m]}, {"success", r.success},
-                          {"status", r.status},  {"iterations", r.iterations},
-                          {"globalization_iterations", r.extra_iterations},
-                          {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
-                          {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
-                          {"start_parameters", std::vector<double>(starts[s].data(), starts[s].data() + starts[s].size())}};
-      j["order"] = json_number(r.order);
-      j["parameter_error"] = json_number(r.error);
-      json_runs.push_back(j);
+  // Every (start, method) run, up to `jobs` at a time; each child writes its own report.
+  struct Task {
+    size_t start, method;
+    std::string report;
+  };
+  std::vector<Task> tasks;
+  for (size_t s = 0; s < starts.size(); ++s)
+    for (size_t m = 0; m < args.methods.size(); ++m)
+      tasks.push_back({s, m,
+                       (std::filesystem::path(args.out) /
+                        ("full_vs_reduced_run_" + std::to_string(s) + "_" + std::to_string(m) + ".json"))
+                           .string()});
+  std::vector<std::vector<Run>> runs(args.methods.size(), std::vector<Run>(starts.size()));
+  std::map<pid_t, size_t> running;  // child -> task
+  size_t next = 0;
+  while (next < tasks.size() || !running.empty()) {
+    while (next < tasks.size() && static_cast<int>(running.size()) < args.jobs) {
+      const Task& t = tasks[next];
+      running[start_isolated(args, problem, args.methods[t.method], starts[t.start], t.report)] = next++;
     }
+    int status = 0;
+    struct rusage usage {};
+    const pid_t pid = wait4(-1, &status, 0, &usage);
+    if (pid < 0) throw std::runtime_error("wait4() failed while the study's runs were going");
+    const auto child = running.find(pid);
+    if (child == running.end()) continue;
+    const Task& t = tasks[child->second];
+    running.erase(child);
+    const Run r = read_report(args, problem, args.methods[t.method], t.report, status, usage);
+    runs[t.method][t.start] = r;
+    std::printf("start %2zu %-15s %-9s %-20s its %3d+%-3d error %.2e  %.2f s  %.0f MB\n", t.start,
+                args.methods[t.method].c_str(), r.success ? "success" : "failure", r.status.c_str(),
+                r.extra_iterations, r.iterations, r.error, r.seconds, r.peak_mb);
+    std::fflush(stdout);
+  }
+  nlohmann::json json_runs = nlohmann::json::array();
+  for (const Task& t : tasks) {
+    const Run& r = runs[t.method][t.start];
+    const Vector& p = starts[t.start];
+    nlohmann::json j = {{"start", t.start},     {"method", args.methods[t.method]}, {"success", r.success},
+                        {"status", r.status},   {"iterations", r.iterations},
+                        {"globalization_iterations", r.extra_iterations},
+                        {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
+                        {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
+                        {"start_parameters", std::vector<double>(p.data(), p.data() + p.size())}};
+    j["order"] = json_number(r.order);
+    j["parameter_error"] = json_number(r.error);
+    json_runs.push_back(j);
   }
 
   std::printf("\n%-15s %9s %12s %12s %8s %8s %10s %10s %9s %7s\n", "method", "successes", "iterations",
@@ -220,7 +260,8 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   std::printf("success: right modes and every parameter within %.0e of the truth; iterations: Ipopt's for "
               "fullspace (+ its reduced globalization), medians over the runs\n",
               args.success_tolerance);
-  std::filesystem::remove(report_path);
+  if (args.jobs > 1)
+    std::printf("%d runs at a time: the times include waiting for the shared cores\n", args.jobs);
   const std::string plot_path = (std::filesystem::path(args.out) / "full_vs_reduced.png").string();
   try {
     plot_panels(plot_path, "Convergence from the problem's start: " + problem.name, "iteration",
@@ -259,6 +300,10 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("--out", args->out, "directory for the plot (default: out)");
   cmd->add_option("--json", args->json, "write the study as JSON to this file");
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--jobs", args->jobs,
+                  "runs at a time, each with one BLAS thread (default 1); successes and counts are unchanged, "
+                  "times then include waiting for the cores")
+      ->check(CLI::PositiveNumber);
   cmd->callback([args, exit_code] { *exit_code = run_full_vs_reduced(*args); });
 }
 
