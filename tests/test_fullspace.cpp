@@ -139,6 +139,28 @@ TEST(FullSpace, UnguardedNewtonFindsWrongModesWhichTheFinalCheckCatchesAndTheSaf
   for (double mac : guarded.mode_check.mac) EXPECT_GT(mac, 0.99);
 }
 
+TEST(FullSpace, GlobalizationOnTheLogarithmicMisfitRecoversFromTenTimesTooSoft) {
+  const Problem problem = Identifiable();
+  const Vector start = problem.initial_values() * 0.1;
+  Objective objective(problem);
+  FullSpaceOptions options;
+  options.globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
+  const FullSpaceSummary summary = minimize_fullspace(objective, start, options);
+  ASSERT_TRUE(summary.converged()) << summary.FullReport();
+  EXPECT_LT(MaxRelativeError(summary.final, problem.truth_values()), 1e-7) << summary.FullReport();
+  // The globalization's history holds the misfit it minimized, the summary the objective's own.
+  ObjectiveOptions log_options;
+  log_options.eigenvalue_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
+  Objective logarithmic(problem, log_options);
+  const Evaluation at_start = logarithmic.evaluate(start), relative_at_start = objective.evaluate(start);
+  ASSERT_FALSE(summary.globalization_history.empty());
+  EXPECT_CLOSE(summary.globalization_history.front().objective, at_start.value, 1e-12);
+  EXPECT_CLOSE(summary.initial_objective, relative_at_start.value, 1e-12);
+  EXPECT_GT(std::abs(at_start.value / relative_at_start.value - 1), 1e-2);
+  // The Newton phase carries the relative misfit: an objective with another one is refused.
+  EXPECT_THROW(minimize_fullspace(logarithmic, start, {}), std::invalid_argument);
+}
+
 TEST(FullSpace, OptionsAreValidatedNamingTheField) {
   FullSpaceOptions options;
   std::string error;

@@ -3,6 +3,8 @@
 // spring, point mass and inertia) with eigenvalue and mode-shape terms and regularization.
 
 #include <cmath>
+#include <set>
+#include <string>
 
 #include "modalcal/gradient_check.hpp"
 #include "modalcal/objective.hpp"
@@ -35,18 +37,61 @@ TEST(Objective, VanishesAtTheTruthAndIsPositiveElsewhere) {
   EXPECT_CLOSE(at_start.value, 0.5 * at_start.residuals.squaredNorm(), 1e-12);
 }
 
+constexpr ObjectiveOptions::EigenvalueMisfit kMisfitForms[] = {ObjectiveOptions::EigenvalueMisfit::Relative,
+                                                                ObjectiveOptions::EigenvalueMisfit::Logarithmic};
+
 TEST(Objective, AdjointGradientMatchesCentralDifferencesForEveryParameterKind) {
   const Problem problem = LoadModel();
-  ObjectiveOptions options;
-  options.regularization = 1e-3;
-  Objective objective(problem, options);
-  GradientCheckOptions check_options;
-  check_options.tolerance = 1e-5;
-  const GradientCheck check = check_gradient(objective, problem.initial_values(), check_options);
-  EXPECT_TRUE(check.ok) << check.report;
-  EXPECT_LT(check.max_relative_error, 1e-5) << check.report;
-  // Every parameter acts on the objective.
-  for (int j = 0; j < check.analytic.size(); ++j) EXPECT_GT(std::abs(check.analytic[j]), 0.0) << j;
+  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
+    SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
+    ObjectiveOptions options;
+    options.regularization = 1e-3;
+    options.eigenvalue_misfit = form;
+    Objective objective(problem, options);
+    GradientCheckOptions check_options;
+    check_options.tolerance = 1e-5;
+    const GradientCheck check = check_gradient(objective, problem.initial_values(), check_options);
+    EXPECT_TRUE(check.ok) << check.report;
+    EXPECT_LT(check.max_relative_error, 1e-5) << check.report;
+    // Every parameter acts on the objective.
+    for (int j = 0; j < check.analytic.size(); ++j) EXPECT_GT(std::abs(check.analytic[j]), 0.0) << j;
+  }
+}
+
+// The relative misfit saturates where the model is far too soft (r -> -1, slope lambda/lambda_m
+// in log-parameters -> 0); the logarithmic one keeps a slope of one, and near a fit both agree.
+TEST(Objective, LogarithmicMisfitKeepsItsSlopeWhereTheRelativeOneSaturates) {
+  Problem problem = LoadModel();
+  for (MeasuredMode& m : problem.measured) m.shape.resize(0);  // eigenvalues only
+  problem.sensors.clear();
+  for (MeasuredMode& m : problem.measured) m.pairing.kind = PairingRule::Kind::ModelIndex;
+  ObjectiveOptions log_options;
+  log_options.eigenvalue_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
+  Objective relative(problem), logarithmic(problem, log_options);
+  // Every stiffness parameter at 1e-2 of its truth: eigenvalues near 1e-2 of the measured ones.
+  Vector soft = problem.truth_values();
+  const std::set<std::string> stiffness = {"E", "K", "G", "kscale", "kx", "krz", "spring"};
+  for (size_t j = 0; j < problem.parameters.size(); ++j)
+    if (stiffness.count(problem.parameters[j].name)) soft[static_cast<Eigen::Index>(j)] *= 1e-2;
+  const Evaluation r = relative.evaluate(soft, Need::Gradient), l = logarithmic.evaluate(soft, Need::Gradient);
+  ASSERT_TRUE(r.ok && l.ok) << r.message << l.message;
+  // Slope along log p of the stiffnesses (sum of p_j dJ/dp_j): the relative form's is tiny, the
+  // logarithmic one's is not.
+  double relative_slope = 0, log_slope = 0;
+  for (size_t j = 0; j < problem.parameters.size(); ++j)
+    if (stiffness.count(problem.parameters[j].name)) {
+      const Eigen::Index k = static_cast<Eigen::Index>(j);
+      relative_slope += soft[k] * r.gradient[k];
+      log_slope += soft[k] * l.gradient[k];
+    }
+  EXPECT_LT(std::abs(relative_slope), 1e-2 * std::abs(log_slope)) << relative_slope << " vs " << log_slope;
+  EXPECT_LT(log_slope, 0);  // stiffening lowers the misfit
+  // Near the truth the two agree to first order in the relative errors.
+  Vector near = problem.truth_values() * 1.001;
+  const Evaluation rn = relative.evaluate(near), ln = logarithmic.evaluate(near);
+  ASSERT_TRUE(rn.ok && ln.ok);
+  EXPECT_NEAR(ln.value / rn.value, 1.0, 1e-2);
+  for (const PairedMode& pair : ln.pairs) EXPECT_NE(pair.relative_error, 0.0);  // reported as relative
 }
 
 TEST(Objective, EigenvalueOnlyGradientNeedsNoLinearSolve) {
@@ -66,7 +111,11 @@ TEST(Objective, EigenvalueOnlyGradientNeedsNoLinearSolve) {
 
 TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
   const Problem problem = LoadModel();
-  Objective objective(problem);
+  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
+  SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
+  ObjectiveOptions options;
+  options.eigenvalue_misfit = form;
+  Objective objective(problem, options);
   const Vector p = problem.initial_values();
   const Evaluation e = objective.evaluate(p, Need::Jacobian);
   ASSERT_TRUE(e.ok) << e.message;
@@ -82,6 +131,7 @@ TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
     const Vector fd = (ep.residuals - em.residuals) / (2 * h);
     EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-4 * (fd.norm() + 1e-12))
         << problem.parameters[j].name << "\nFD " << fd.transpose() << "\nJ  " << e.jacobian.col(j).transpose();
+  }
   }
 }
 
@@ -105,8 +155,11 @@ TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {
 
 TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   const Problem problem = LoadModel();
+  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
+  SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
   ObjectiveOptions options;
   options.regularization = 1e-3;
+  options.eigenvalue_misfit = form;
   Objective objective(problem, options);
   // Away from the truth so that the second-order (residual-weighted) terms matter.
   const Vector p = problem.initial_values();
@@ -130,6 +183,7 @@ TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   EXPECT_LT((scaled - scaled_fd).norm(), 1e-4 * scaled_fd.norm()) << "exact\n" << scaled << "\nFD\n" << scaled_fd;
   // And the second-order terms are really there: Gauss-Newton alone is clearly different.
   EXPECT_GT((scaled_gn - scaled_fd).norm(), 1e-2 * scaled_fd.norm());
+  }
 }
 
 TEST(Objective, CentralDifferenceGradientAgreesWithTheAdjointAndCostsTwoSolvesPerParameter) {

@@ -96,7 +96,16 @@ struct ObjectiveOptions {
   /// The Hessian (Need::Hessian) always needs the full sensitivities.
   enum class Jacobian { Automatic, DirectSensitivities, SensorAdjoint };
   Jacobian jacobian = Jacobian::Automatic;
-  /// Scaling of the regularization variables; per parameter from the problem when unset.
+  /// Form of the eigenvalue residual of each measured mode:
+  /// - `Relative`: \f$r_i = (\lambda_i - \lambda_{mi})/\lambda_{mi}\f$, the report's eq. 5 and
+  ///   the calibration objective;
+  /// - `Logarithmic`: \f$r_i = \ln(\lambda_i/\lambda_{mi})\f$, equal to first order near a fit.
+  ///   The relative form saturates at -1 when a model is far too soft (\f$\lambda \ll
+  ///   \lambda_m\f$, its slope in log-parameters \f$\lambda/\lambda_m\f$ vanishes), which
+  ///   creates stationary points far from any fit; the logarithmic form has a slope of 1 for every
+  ///   \f$\lambda\f$. The full-space method's globalization uses it.
+  enum class EigenvalueMisfit { Relative, Logarithmic };
+  EigenvalueMisfit eigenvalue_misfit = EigenvalueMisfit::Relative;
   bool IsValid(std::string* error) const;
 };
 
@@ -105,7 +114,7 @@ struct PairedMode {
   int measured = 0;             ///< 0-based index into Problem::measured
   int model = 0;                ///< 0-based elastic model mode index
   double measured_hz = 0, model_hz = 0;
-  double relative_error = 0;    ///< r_i = (lambda - lambda_m) / lambda_m
+  double relative_error = 0;    ///< (lambda - lambda_m) / lambda_m, whatever the misfit form
   double mac = -1;              ///< MAC at the sensors, -1 without a measured shape
 };
 

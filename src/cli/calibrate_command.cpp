@@ -39,6 +39,7 @@ struct CalibrateArgs {
   // Full-space tuning, for studies of what each safeguard buys.
   int globalization = FullSpaceOptions().globalization_iterations;
   bool no_guard = false;
+  std::string globalization_misfit = "relative";
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -90,6 +91,9 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     options.scaling = scaling;
     options.globalization_iterations = args.globalization;
     options.mode_guard = !args.no_guard;
+    options.globalization_misfit = args.globalization_misfit == "relative"
+                                       ? ObjectiveOptions::EigenvalueMisfit::Relative
+                                       : ObjectiveOptions::EigenvalueMisfit::Logarithmic;
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -271,6 +275,10 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--globalization-misfit", args->globalization_misfit,
+                  "fullspace: eigenvalue misfit of the globalization, relative (default, the objective's own) or "
+                  "log (ln(lambda/lambda_m): no stationary points where the model is far too soft)")
+      ->check(CLI::IsMember({"log", "relative"}));
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");

@@ -71,6 +71,10 @@ pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, cons
     argv_strings.push_back("--globalization");
     argv_strings.push_back("0");
   }
+  if (method == "fullspace-log-globalization") {
+    argv_strings.push_back("--globalization-misfit");
+    argv_strings.push_back("log");
+  }
   if (args.refine > 0) {
     argv_strings.push_back("--refine");
     argv_strings.push_back(std::to_string(args.refine));
@@ -288,12 +292,14 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--seed", args->seed, "random seed (default 1)");
   std::vector<std::string> names = calibration_method_names();
-  for (const char* variant : {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive"})
+  for (const char* variant :
+       {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-log-globalization"})
     names.push_back(variant);
   cmd->add_option("--methods", args->methods,
                   "any of: fullspace reduced-lbfgs reduced-newton reduced-gauss-newton, and the full-space "
-                  "variants without safeguards fullspace-unguarded, fullspace-no-globalization, fullspace-naive "
-                  "(default: the first three)")
+                  "variants without safeguards fullspace-unguarded, fullspace-no-globalization, fullspace-naive, "
+                  "and fullspace-log-globalization (globalization on the logarithmic eigenvalue misfit; "
+                  "default: the first three)")
       ->check(CLI::IsMember(names));
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
       ->check(CLI::PositiveNumber);

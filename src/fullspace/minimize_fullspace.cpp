@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
+#include <stdexcept>
 
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/ipopt/ipopt_run.hpp"
@@ -79,6 +81,10 @@ ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const 
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("FullSpaceOptions: " + error);
+  if (objective.options().eigenvalue_misfit != ObjectiveOptions::EigenvalueMisfit::Relative)
+    throw std::invalid_argument(
+        "minimize_fullspace: the objective's eigenvalue_misfit must be Relative (the full-space constraints carry "
+        "the relative misfit); FullSpaceOptions::globalization_misfit chooses the globalization's");
   const Clock::time_point start = Clock::now();
   const Problem& problem = objective.problem();
   const int forward_solves_before = objective.forward_solves();
@@ -87,10 +93,19 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   // Ipopt keeps the parameters within their bounds: so does the start.
   const Vector start_point = p0.cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
   summary.initial = summary.final = start_point;
+  // The globalization's objective: the same data and options with its own eigenvalue misfit.
+  std::unique_ptr<Objective> misfit_objective;
+  if (options.globalization_misfit != objective.options().eigenvalue_misfit) {
+    ObjectiveOptions global_options = objective.options();
+    global_options.eigenvalue_misfit = options.globalization_misfit;
+    misfit_objective = std::make_unique<Objective>(problem, global_options);
+  }
+  Objective& global_objective = misfit_objective ? *misfit_objective : objective;
   auto finish = [&](FullSpaceStatus status, const std::string& message) {
     summary.status = status;
     if (summary.message.empty()) summary.message = message;
-    summary.forward_solves = objective.forward_solves() - forward_solves_before;
+    summary.forward_solves = objective.forward_solves() - forward_solves_before +
+                             (misfit_objective ? misfit_objective->forward_solves() : 0);
     summary.seconds = seconds_since(start);
     return summary;
   };
@@ -105,7 +120,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     reduced.max_iterations = iterations;
     reduced.relative_gradient_tolerance = options.globalization_reduction;
     reduced.scaling = options.scaling;
-    const ReducedSummary run = minimize_reduced(objective, from, reduced);
+    const ReducedSummary run = minimize_reduced(global_objective, from, reduced);
     for (IterationRecord record : run.history) {
       if (!summary.globalization_history.empty() && record.iteration == 0) continue;
       record.iteration += summary.globalization_iterations;

@@ -45,6 +45,17 @@ struct Objective::Workspace {
 
 namespace {
 
+// The eigenvalue residual r(lambda) of one measured mode with its first two derivatives.
+struct EigenvalueResidual {
+  double r, dr, d2r;
+};
+
+EigenvalueResidual eigenvalue_residual(double lambda, double target, ObjectiveOptions::EigenvalueMisfit form) {
+  if (form == ObjectiveOptions::EigenvalueMisfit::Logarithmic)
+    return {std::log(lambda / target), 1 / lambda, -1 / (lambda * lambda)};
+  return {(lambda - target) / target, 1 / target, 0};
+}
+
 // e = (I - phi phi^T) y / |y| for unit phi, and de/dy = (I - phi phi^T)(I - yhat yhat^T)/|y|.
 Vector shape_residual(const Vector& y, const Vector& phi_unit) {
   const Vector yhat = y / y.norm();
@@ -93,8 +104,8 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
 Objective::~Objective() = default;
 
 // Exact Hessian contribution of measured mode i (paired with eigenvalue lambda, mode u).
-// Eigenvalue term 1/2 beta r^2, r = (lambda - lambda_m)/lambda_m:
-//   H += beta/lambda_m^2 grad(lambda) grad(lambda)^T + beta r/lambda_m d2lambda,
+// Eigenvalue term 1/2 beta r(lambda)^2 (r = (lambda - lambda_m)/lambda_m, or ln(lambda/lambda_m)):
+//   H += beta (r'^2 + r r'') grad(lambda) grad(lambda)^T + beta r r' d2lambda,
 //   d2lambda_jk = -2 x_k^T (K - lambda M) x_j - lambda_j m_k - lambda_k m_j + u^T (K_jk - lambda M_jk) u,
 // with m_j = u^T M_j u (differentiate lambda_j = u^T (K_j - lambda M_j) u once more).
 // Shape term g(y) = kappa/2 (1 - MAC(y, phi)), y = P u:
@@ -113,13 +124,13 @@ void Objective::add_mode_hessian(const Vector& p, int i, double lambda, const Ve
   Matrix A2, B2;
   system_->second_derivative_forms(p, u, u, &A2, &B2);
   if (measured.weight > 0) {
-    const double target = eigenvalue_of_hz(measured.frequency_hz);
-    const double r = (lambda - target) / target;
+    const EigenvalueResidual e =
+        eigenvalue_residual(lambda, eigenvalue_of_hz(measured.frequency_hz), options_.eigenvalue_misfit);
     const Matrix KX = K * X - lambda * (M * X);
     Matrix d2lambda = -2 * X.transpose() * KX + A2 - lambda * B2;
     d2lambda -= dlambda * m.transpose() + m * dlambda.transpose();
-    *H += measured.weight / (target * target) * dlambda * dlambda.transpose() +
-          measured.weight * r / target * 0.5 * (d2lambda + d2lambda.transpose());
+    *H += measured.weight * (e.dr * e.dr + e.r * e.d2r) * dlambda * dlambda.transpose() +
+          measured.weight * e.r * e.dr * 0.5 * (d2lambda + d2lambda.transpose());
   }
   if (Ju.size() == 0) return;
   const Matrix Hy = detail::ShapeMisfit(measured.shape, measured.shape_weight).hessian(workspace_->sensors * u);
@@ -236,8 +247,9 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     pair.relative_error = (lambda[k] - target) / target;
     pair.mac = m.shape.size() ? mac_table(i, k) : -1;
     e.pairs.push_back(pair);
-    e.residuals[row++] = std::sqrt(m.weight) * pair.relative_error;
-    e.eigenvalue_term += 0.5 * m.weight * pair.relative_error * pair.relative_error;
+    const double r = eigenvalue_residual(lambda[k], target, options_.eigenvalue_misfit).r;
+    e.residuals[row++] = std::sqrt(m.weight) * r;
+    e.eigenvalue_term += 0.5 * m.weight * r * r;
     for (int n : {k - 1, k + 1})
       if (n >= 0 && n < num_model && std::abs(lambda[n] - lambda[k]) < options_.close_eigenvalue_tolerance * lambda[k])
         e.warnings.push_back(describe_measured(m, i) + " is paired with model mode " + std::to_string(k + 1) +
@@ -312,10 +324,11 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     dlambda[i] = mode_a.col(i) - lambda[k] * mode_b.col(i);
     umu[i] = mode_b.col(i);
     const MeasuredMode& m = problem_.measured[i];
-    const double target = eigenvalue_of_hz(m.frequency_hz);
-    e.gradient += m.weight * e.pairs[i].relative_error / target * dlambda[i];
-    e.adjoint.col(i) = m.weight * e.pairs[i].relative_error / target * U.col(k);  // J_lambda u
-    if (need >= Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) / target * dlambda[i].transpose();
+    const EigenvalueResidual r =
+        eigenvalue_residual(lambda[k], eigenvalue_of_hz(m.frequency_hz), options_.eigenvalue_misfit);
+    e.gradient += m.weight * r.r * r.dr * dlambda[i];
+    e.adjoint.col(i) = m.weight * r.r * r.dr * U.col(k);  // J_lambda u
+    if (need >= Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) * r.dr * dlambda[i].transpose();
   }
 
   // Shape terms: adjoint right-hand sides (M u u^T - I) J_u, one column per measured shape.
