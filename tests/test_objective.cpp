@@ -5,6 +5,8 @@
 #include <cmath>
 #include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "modalcal/gradient_check.hpp"
 #include "modalcal/objective.hpp"
@@ -16,7 +18,6 @@ namespace {
 using testing::WriteTempFile;
 
 using testing::kEveryParameterKindModel;
-
 
 Problem LoadModel() { return load_problem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
 
@@ -37,16 +38,18 @@ TEST(Objective, VanishesAtTheTruthAndIsPositiveElsewhere) {
   EXPECT_CLOSE(at_start.value, 0.5 * at_start.residuals.squaredNorm(), 1e-12);
 }
 
-constexpr ObjectiveOptions::EigenvalueMisfit kMisfitForms[] = {ObjectiveOptions::EigenvalueMisfit::Relative,
-                                                                ObjectiveOptions::EigenvalueMisfit::Logarithmic};
+// The derivative tests run on both eigenvalue misfit forms: (name, options) pairs.
+std::vector<std::pair<const char*, ObjectiveOptions>> MisfitForms(double regularization) {
+  ObjectiveOptions relative, logarithmic;
+  relative.regularization = logarithmic.regularization = regularization;
+  logarithmic.eigenvalue_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
+  return {{"relative", relative}, {"logarithmic", logarithmic}};
+}
 
 TEST(Objective, AdjointGradientMatchesCentralDifferencesForEveryParameterKind) {
   const Problem problem = LoadModel();
-  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
-    SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
-    ObjectiveOptions options;
-    options.regularization = 1e-3;
-    options.eigenvalue_misfit = form;
+  for (const auto& [name, options] : MisfitForms(1e-3)) {
+    SCOPED_TRACE(name);
     Objective objective(problem, options);
     GradientCheckOptions check_options;
     check_options.tolerance = 1e-5;
@@ -111,27 +114,25 @@ TEST(Objective, EigenvalueOnlyGradientNeedsNoLinearSolve) {
 
 TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
   const Problem problem = LoadModel();
-  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
-  SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
-  ObjectiveOptions options;
-  options.eigenvalue_misfit = form;
-  Objective objective(problem, options);
-  const Vector p = problem.initial_values();
-  const Evaluation e = objective.evaluate(p, Need::Jacobian);
-  ASSERT_TRUE(e.ok) << e.message;
-  ASSERT_EQ(e.jacobian.rows(), objective.num_residuals());
-  // Gauss-Newton consistency: gradient = J^T r (no regularization here).
-  EXPECT_LT((e.gradient - e.jacobian.transpose() * e.residuals).norm(), 1e-8 * e.gradient.norm());
-  for (int j = 0; j < p.size(); ++j) {
-    const double h = 1e-5 * std::abs(p[j]);
-    Vector plus = p, minus = p;
-    plus[j] += h;
-    minus[j] -= h;
-    const Evaluation ep = objective.evaluate(plus), em = objective.evaluate(minus);
-    const Vector fd = (ep.residuals - em.residuals) / (2 * h);
-    EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-4 * (fd.norm() + 1e-12))
-        << problem.parameters[j].name << "\nFD " << fd.transpose() << "\nJ  " << e.jacobian.col(j).transpose();
-  }
+  for (const auto& [name, options] : MisfitForms(0)) {
+    SCOPED_TRACE(name);
+    Objective objective(problem, options);
+    const Vector p = problem.initial_values();
+    const Evaluation e = objective.evaluate(p, Need::Jacobian);
+    ASSERT_TRUE(e.ok) << e.message;
+    ASSERT_EQ(e.jacobian.rows(), objective.num_residuals());
+    // Gauss-Newton consistency: gradient = J^T r (no regularization here).
+    EXPECT_LT((e.gradient - e.jacobian.transpose() * e.residuals).norm(), 1e-8 * e.gradient.norm());
+    for (int j = 0; j < p.size(); ++j) {
+      const double h = 1e-5 * std::abs(p[j]);
+      Vector plus = p, minus = p;
+      plus[j] += h;
+      minus[j] -= h;
+      const Evaluation ep = objective.evaluate(plus), em = objective.evaluate(minus);
+      const Vector fd = (ep.residuals - em.residuals) / (2 * h);
+      EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-4 * (fd.norm() + 1e-12))
+          << problem.parameters[j].name << "\nFD " << fd.transpose() << "\nJ  " << e.jacobian.col(j).transpose();
+    }
   }
 }
 
@@ -155,34 +156,31 @@ TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {
 
 TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   const Problem problem = LoadModel();
-  for (const ObjectiveOptions::EigenvalueMisfit form : kMisfitForms) {
-  SCOPED_TRACE(form == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "logarithmic");
-  ObjectiveOptions options;
-  options.regularization = 1e-3;
-  options.eigenvalue_misfit = form;
-  Objective objective(problem, options);
-  // Away from the truth so that the second-order (residual-weighted) terms matter.
-  const Vector p = problem.initial_values();
-  const Evaluation e = objective.evaluate(p, Need::Hessian);
-  ASSERT_TRUE(e.ok) << e.message;
-  ASSERT_EQ(e.hessian.rows(), p.size());
-  const Matrix gauss_newton = e.jacobian.transpose() * e.jacobian;
-  Matrix fd(p.size(), p.size());
-  for (int k = 0; k < p.size(); ++k) {
-    const double h = 1e-5 * std::abs(p[k]);
-    Vector plus = p, minus = p;
-    plus[k] += h;
-    minus[k] -= h;
-    const Evaluation ep = objective.evaluate(plus, Need::Gradient), em = objective.evaluate(minus, Need::Gradient);
-    ASSERT_TRUE(ep.ok && em.ok);
-    fd.col(k) = (ep.gradient - em.gradient) / (2 * h);
-  }
-  // Compare column by column, scaled by each parameter so that units do not hide errors.
-  const Matrix D = p.asDiagonal();
-  const Matrix scaled_fd = D * fd * D, scaled = D * e.hessian * D, scaled_gn = D * gauss_newton * D;
-  EXPECT_LT((scaled - scaled_fd).norm(), 1e-4 * scaled_fd.norm()) << "exact\n" << scaled << "\nFD\n" << scaled_fd;
-  // And the second-order terms are really there: Gauss-Newton alone is clearly different.
-  EXPECT_GT((scaled_gn - scaled_fd).norm(), 1e-2 * scaled_fd.norm());
+  for (const auto& [name, options] : MisfitForms(1e-3)) {
+    SCOPED_TRACE(name);
+    Objective objective(problem, options);
+    // Away from the truth so that the second-order (residual-weighted) terms matter.
+    const Vector p = problem.initial_values();
+    const Evaluation e = objective.evaluate(p, Need::Hessian);
+    ASSERT_TRUE(e.ok) << e.message;
+    ASSERT_EQ(e.hessian.rows(), p.size());
+    const Matrix gauss_newton = e.jacobian.transpose() * e.jacobian;
+    Matrix fd(p.size(), p.size());
+    for (int k = 0; k < p.size(); ++k) {
+      const double h = 1e-5 * std::abs(p[k]);
+      Vector plus = p, minus = p;
+      plus[k] += h;
+      minus[k] -= h;
+      const Evaluation ep = objective.evaluate(plus, Need::Gradient), em = objective.evaluate(minus, Need::Gradient);
+      ASSERT_TRUE(ep.ok && em.ok);
+      fd.col(k) = (ep.gradient - em.gradient) / (2 * h);
+    }
+    // Compare column by column, scaled by each parameter so that units do not hide errors.
+    const Matrix D = p.asDiagonal();
+    const Matrix scaled_fd = D * fd * D, scaled = D * e.hessian * D, scaled_gn = D * gauss_newton * D;
+    EXPECT_LT((scaled - scaled_fd).norm(), 1e-4 * scaled_fd.norm()) << "exact\n" << scaled << "\nFD\n" << scaled_fd;
+    // And the second-order terms are really there: Gauss-Newton alone is clearly different.
+    EXPECT_GT((scaled_gn - scaled_fd).norm(), 1e-2 * scaled_fd.norm());
   }
 }
 
