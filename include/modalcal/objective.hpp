@@ -103,7 +103,7 @@ struct ObjectiveOptions {
   ///   The relative form saturates at -1 when a model is far too soft (\f$\lambda \ll
   ///   \lambda_m\f$, its slope in log-parameters \f$\lambda/\lambda_m\f$ vanishes), which
   ///   creates stationary points far from any fit; the logarithmic form has a slope of 1 for every
-  ///   \f$\lambda\f$. The full-space method's globalization uses it.
+  ///   \f$\lambda\f$. The full-space globalization can use it (FullSpaceOptions::globalization_misfit).
   enum class EigenvalueMisfit { Relative, Logarithmic };
   EigenvalueMisfit eigenvalue_misfit = EigenvalueMisfit::Relative;
   bool IsValid(std::string* error) const;
