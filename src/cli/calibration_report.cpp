@@ -35,11 +35,13 @@ CalibrationReport make_report(Objective& objective, const Vector& initial, const
                             {"lower", q.lower}, {"upper", q.upper}};
     std::string truth = "-", error = "-";
     if (q.truth) {
+      const double error_percent = 100 * (final_value / *q.truth - 1);
       entry["truth"] = *q.truth;
+      entry["error_percent"] = json_number(error_percent);
       char buffer[32];
       std::snprintf(buffer, sizeof buffer, "%.4e", *q.truth);
       truth = buffer;
-      std::snprintf(buffer, sizeof buffer, "%.4f", 100 * (final_value / *q.truth - 1));
+      std::snprintf(buffer, sizeof buffer, "%.4f", error_percent);
       error = buffer;
     }
     report.parameters.push_back(entry);
@@ -87,7 +89,7 @@ nlohmann::json history_json(const std::vector<IterationRecord>& records) {
   return history;
 }
 
-/// One CSV cell: numbers at full precision, strings quoted when they need it, empty if absent.
+/// One CSV cell: numbers to ten significant digits, strings quoted when they need it, empty if absent.
 std::string csv_cell(const nlohmann::json& entry, const char* key) {
   if (!entry.contains(key) || entry[key].is_null()) return "";
   const nlohmann::json& v = entry[key];
@@ -118,13 +120,9 @@ std::string csv_table(const nlohmann::json& rows, const std::vector<const char*>
 
 std::vector<std::string> write_csv_report(const std::string& prefix, const nlohmann::json& report,
                                           const Problem& problem) {
-  nlohmann::json parameters = report.value("parameters", nlohmann::json::array());
-  for (nlohmann::json& p : parameters)
-    if (p.contains("truth") && p["final"].is_number())
-      p["error_percent"] = 100 * (p["final"].get<double>() / p["truth"].get<double>() - 1);
   const std::vector<std::pair<std::string, std::string>> files = {
-      {prefix + "_parameters.csv",
-       csv_table(parameters, {"name", "initial", "final", "truth", "error_percent", "lower", "upper"})},
+      {prefix + "_parameters.csv", csv_table(report.value("parameters", nlohmann::json::array()),
+                                             {"name", "initial", "final", "truth", "error_percent", "lower", "upper"})},
       {prefix + "_modes.csv", csv_table(report.value("modes", nlohmann::json::array()),
                                         {"label", "model_mode", "measured_hz", "predicted_hz", "error_percent", "mac"})},
       {prefix + "_history.csv", csv_table(report.value("history", nlohmann::json::array()),

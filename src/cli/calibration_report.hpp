@@ -15,7 +15,7 @@ namespace modalcal::cli {
 
 struct CalibrationReport {
   std::string text;           ///< parameter table and measured-vs-predicted table
-  nlohmann::json parameters;  ///< [{name, initial, final, truth?, lower, upper}]
+  nlohmann::json parameters;  ///< [{name, initial, final, truth?, error_percent?, lower, upper}]
   nlohmann::json modes;       ///< [{label, measured_hz, predicted_hz, error_percent, model_mode, mac?}]
   nlohmann::json summary;     ///< converged, status, iterations, history, counts, time
   nlohmann::json settings;

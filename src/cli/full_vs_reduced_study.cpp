@@ -57,14 +57,15 @@ double median(std::vector<double> v) {
   return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
+bool is_fullspace(const std::string& method) { return method.rfind("fullspace", 0) == 0; }
+
 // One calibration in a child process: this program's own `calibrate` (a fork alone is not
 // safe once BLAS or OpenMP threads exist), started here and read back by read_report.
 pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method,
                      const Vector& start, const std::string& report_path) {
   // Variants of the full-space method without its safeguards, to measure what each one buys.
-  const bool full = method.rfind("fullspace", 0) == 0;
   std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method",
-                                           full ? "fullspace" : method, "--quiet", "--json", report_path,
+                                           is_fullspace(method) ? "fullspace" : method, "--quiet", "--json", report_path,
                                            "--max-iterations", "300"};
   if (method == "fullspace-unguarded" || method == "fullspace-naive") argv_strings.push_back("--no-guard");
   if (method == "fullspace-no-globalization" || method == "fullspace-naive") {
@@ -105,7 +106,6 @@ pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, cons
 // The finished child's report, judged against the truth.
 Run read_report(const FullVsReducedArgs& args, const Problem& problem, const std::string& method,
                 const std::string& report_path, int status, const struct rusage& usage) {
-  const bool full = method.rfind("fullspace", 0) == 0;
   Run run;
   run.peak_mb = usage.ru_maxrss / 1024.0;
   if (!std::filesystem::exists(report_path)) {
@@ -136,7 +136,7 @@ Run read_report(const FullVsReducedArgs& args, const Problem& problem, const std
     run.gradient.push_back(h["gradient_norm"]);
   }
   run.order = j["convergence_order"].is_null() ? NAN : j["convergence_order"].get<double>();
-  if (full) {
+  if (is_fullspace(method)) {
     // Reduced evaluations pair a forward solve each, so their modes are right by construction;
     // the full space must pass its final mode check.
     run.success = j["mode_check"]["passed"].get<bool>() && error <= args.success_tolerance;
@@ -183,7 +183,8 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   while (next < tasks.size() || !running.empty()) {
     while (next < tasks.size() && static_cast<int>(running.size()) < args.jobs) {
       const Task& t = tasks[next];
-      running[start_isolated(args, problem, args.methods[t.method], starts[t.start], t.report)] = next++;
+      const pid_t pid = start_isolated(args, problem, args.methods[t.method], starts[t.start], t.report);
+      running[pid] = next++;
     }
     int status = 0;
     struct rusage usage {};
