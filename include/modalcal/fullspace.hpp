@@ -72,9 +72,9 @@ struct FullSpaceOptions {
   /// Eigenvalue misfit the globalization minimizes (see ObjectiveOptions::EigenvalueMisfit); the
   /// Newton phase always minimizes the objective's own (relative) misfit, and the globalization's
   /// history records the values of the misfit it minimized. `Logarithmic` removes the stationary
-  /// points of a far too soft start (the bracket's start 2 in the README's study) but, measured
-  /// on the portal frame's 21 starts, found the truth from 16 where `Relative` found it from 18:
-  /// neither is better everywhere, so the objective's own form is the default.
+  /// points of far too soft starts (README: the bracket, 15 of 15 starts against 13) but found the
+  /// truth from 16 of the portal frame's 21 starts where `Relative` found it from 18: neither is
+  /// better everywhere, so the objective's own form is the default.
   ObjectiveOptions::EigenvalueMisfit globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Relative;
   /// Forward solve and MAC check of every u_i at every Ipopt iteration.
   bool mode_guard = true;
