@@ -146,10 +146,8 @@ Run read_report(const FullVsReducedArgs& args, const Problem& problem, const std
   return run;
 }
 
-int run_full_vs_reduced(const FullVsReducedArgs& args) {
-  const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
-  if (!problem.has_truth())
-    throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
+// The problem's start and `args.starts` random ones, p_true 10^U(-1.5, 0.5) within the bounds.
+std::vector<Vector> study_starts(const FullVsReducedArgs& args, const Problem& problem) {
   const Vector truth = problem.truth_values(), lower = problem.lower_bounds(), upper = problem.upper_bounds();
   std::vector<Vector> starts{problem.initial_values()};
   std::mt19937 random(args.seed);
@@ -159,13 +157,13 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
     for (int j = 0; j < p.size(); ++j) p[j] = truth[j] * std::pow(10.0, exponent(random));
     starts.push_back(p.cwiseMax(lower).cwiseMin(upper));
   }
-  std::printf("%s: %zu starts (the problem's and %d random, seed %u), methods:", problem.path.c_str(), starts.size(),
-              args.starts, args.seed);
-  for (const std::string& m : args.methods) std::printf(" %s", m.c_str());
-  std::printf("\n");
+  return starts;
+}
 
-  std::filesystem::create_directories(args.out);
-  // Every (start, method) run, up to `jobs` at a time; each child writes its own report.
+// Every (start, method) run, up to `jobs` at a time, each child with its own report file;
+// runs[method][start], printed as they finish.
+std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Problem& problem,
+                                      const std::vector<Vector>& starts) {
   struct Task {
     size_t start, method;
     std::string report;
@@ -201,21 +199,44 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
                 r.extra_iterations, r.iterations, r.error, r.seconds, r.peak_mb);
     std::fflush(stdout);
   }
-  nlohmann::json json_runs = nlohmann::json::array();
-  for (const Task& t : tasks) {
-    const Run& r = runs[t.method][t.start];
-    const Vector& p = starts[t.start];
-    nlohmann::json j = {{"start", t.start},     {"method", args.methods[t.method]}, {"success", r.success},
-                        {"status", r.status},   {"iterations", r.iterations},
-                        {"globalization_iterations", r.extra_iterations},
-                        {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
-                        {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
-                        {"start_parameters", std::vector<double>(p.data(), p.data() + p.size())}};
-    j["order"] = json_number(r.order);
-    j["parameter_error"] = json_number(r.error);
-    json_runs.push_back(j);
-  }
+  return runs;
+}
 
+nlohmann::json runs_json(const FullVsReducedArgs& args, const std::vector<Vector>& starts,
+                         const std::vector<std::vector<Run>>& runs) {
+  nlohmann::json json_runs = nlohmann::json::array();
+  for (size_t s = 0; s < starts.size(); ++s)
+    for (size_t m = 0; m < args.methods.size(); ++m) {
+      const Run& r = runs[m][s];
+      const Vector& p = starts[s];
+      nlohmann::json j = {{"start", s},           {"method", args.methods[m]}, {"success", r.success},
+                          {"status", r.status},   {"iterations", r.iterations},
+                          {"globalization_iterations", r.extra_iterations},
+                          {"forward_solves", r.forward_solves}, {"kkt_solves", r.kkt_solves},
+                          {"seconds", r.seconds}, {"peak_mb", r.peak_mb},
+                          {"start_parameters", std::vector<double>(p.data(), p.data() + p.size())}};
+      j["order"] = json_number(r.order);
+      j["parameter_error"] = json_number(r.error);
+      json_runs.push_back(j);
+    }
+  return json_runs;
+}
+
+// A history's positive values against their index, for a log-scale plot.
+PlotSeries positive_series(const std::string& title, const std::vector<double>& values) {
+  PlotSeries series{title, {}, {}};
+  for (size_t k = 0; k < values.size(); ++k)
+    if (values[k] > 0) {
+      series.x.push_back(static_cast<double>(k));
+      series.y.push_back(values[k]);
+    }
+  return series;
+}
+
+// Prints the per-method table, plots the histories from the problem's start together and
+// returns the per-method summary for the JSON.
+nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
+                         const std::vector<std::vector<Run>>& runs) {
   std::printf("\n%-15s %9s %12s %12s %8s %8s %10s %10s %9s %7s\n", "method", "successes", "iterations",
               "(+global.)", "solves", "KKT", "median s", "total s", "peak MB", "order");
   nlohmann::json summary = nlohmann::json::object();
@@ -246,21 +267,8 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
                                 {"median_kkt_solves", json_number(median(kkt))},
                                 {"median_seconds", json_number(median(seconds))}, {"total_seconds", total},
                                 {"peak_mb", peak},                  {"median_order", json_number(median(orders))}};
-    // The histories from the problem's own start, together.
-    const Run& first = runs[m].front();
-    PlotSeries o{args.methods[m], {}, {}}, g{args.methods[m], {}, {}};
-    for (size_t k = 0; k < first.objective.size(); ++k)
-      if (first.objective[k] > 0) {
-        o.x.push_back(k);
-        o.y.push_back(first.objective[k]);
-      }
-    for (size_t k = 0; k < first.gradient.size(); ++k)
-      if (first.gradient[k] > 0) {
-        g.x.push_back(k);
-        g.y.push_back(first.gradient[k]);
-      }
-    objective_panel.series.push_back(o);
-    gradient_panel.series.push_back(g);
+    objective_panel.series.push_back(positive_series(args.methods[m], runs[m].front().objective));
+    gradient_panel.series.push_back(positive_series(args.methods[m], runs[m].front().gradient));
   }
   std::printf("success: right modes and every parameter within %.0e of the truth; iterations: Ipopt's for "
               "fullspace (+ its reduced globalization), medians over the runs\n",
@@ -275,7 +283,23 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   } catch (const std::exception& e) {
     std::fprintf(stderr, "warning: no plot: %s\n", e.what());
   }
-  write_json(args.json, {{"problem", problem.path}, {"seed", args.seed}, {"methods", summary}, {"runs", json_runs}},
+  return summary;
+}
+
+int run_full_vs_reduced(const FullVsReducedArgs& args) {
+  const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!problem.has_truth())
+    throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
+  const std::vector<Vector> starts = study_starts(args, problem);
+  std::printf("%s: %zu starts (the problem's and %d random, seed %u), methods:", problem.path.c_str(), starts.size(),
+              args.starts, args.seed);
+  for (const std::string& m : args.methods) std::printf(" %s", m.c_str());
+  std::printf("\n");
+  std::filesystem::create_directories(args.out);
+  const std::vector<std::vector<Run>> runs = run_all(args, problem, starts);
+  const nlohmann::json summary = summarize(args, problem, runs);
+  write_json(args.json,
+             {{"problem", problem.path}, {"seed", args.seed}, {"methods", summary}, {"runs", runs_json(args, starts, runs)}},
              problem);
   return 0;
 }
