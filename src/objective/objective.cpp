@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 #include "modalcal/mode_description.hpp"
@@ -309,6 +310,19 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     return basis;
   };
   auto precondition = [&](const Matrix& B) { return solver_->solve_factorized(B); };
+  // A deflated solve (K - lambda_own M) X = B, counted; on failure the evaluation is marked
+  // failed with `what` and the solver's reason, and nullopt is returned.
+  auto deflated_solve = [&](const char* what, const std::vector<int>& own_columns,
+                            const Matrix& B) -> std::optional<Matrix> {
+    detail::DeflatedSolveResult solve =
+        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own_columns, B, precondition,
+                               options_.linear_tolerance, options_.max_linear_iterations);
+    e.linear_solves += solve.column_solves;
+    if (solve.converged) return std::move(solve.solution);
+    e.ok = false;
+    e.message = std::string(what) + ": " + solve.message;
+    return std::nullopt;
+  };
 
   // Eigenvalue sensitivities of every paired mode: dlambda/dp_j = u^T (K_j - lambda M_j) u, all
   // modes in one pass over the assembly terms instead of one pass per mode.
@@ -352,26 +366,19 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   }
   Matrix adjoint_solution(U.rows(), 0);
   if (!shape_modes.empty()) {
-    const detail::DeflatedSolveResult adjoint =
-        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own, rhs, precondition,
-                               options_.linear_tolerance, options_.max_linear_iterations);
-    e.linear_solves += adjoint.column_solves;
-    if (!adjoint.converged) {
-      e.ok = false;
-      e.message = "adjoint solve: " + adjoint.message;
-      return e;
-    }
+    const std::optional<Matrix> adjoint = deflated_solve("adjoint solve", own, rhs);
+    if (!adjoint) return e;
     // w_s^T (K_j - lambda M_j) u for every shape at once.
     Matrix shape_u(U.rows(), static_cast<Eigen::Index>(shape_modes.size()));
     for (size_t s = 0; s < shape_modes.size(); ++s) shape_u.col(s) = U.col(model_of[shape_modes[s]]);
     Matrix shape_a, shape_b;
-    system_->derivative_forms(p, adjoint.solution, shape_u, &shape_a, &shape_b);
+    system_->derivative_forms(p, *adjoint, shape_u, &shape_a, &shape_b);
     for (size_t s = 0; s < shape_modes.size(); ++s) {
       const int k = model_of[shape_modes[s]];
       e.gradient += shape_a.col(s) - lambda[k] * shape_b.col(s);
-      e.adjoint.col(shape_modes[s]) += adjoint.solution.col(s);
+      e.adjoint.col(shape_modes[s]) += adjoint->col(s);
     }
-    adjoint_solution = adjoint.solution;
+    adjoint_solution = *adjoint;
   }
 
   std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
@@ -396,22 +403,15 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       adjoint_rhs.middleCols(a * ns, ns) = sensor_columns;
       own_columns.insert(own_columns.end(), ns, nr + model_of[rows_of[a]]);
     }
-    const detail::DeflatedSolveResult sensor_solve =
-        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own_columns, adjoint_rhs, precondition,
-                               options_.linear_tolerance, options_.max_linear_iterations);
-    e.linear_solves += sensor_solve.column_solves;
-    if (!sensor_solve.converged) {
-      e.ok = false;
-      e.message = "sensor adjoint solve: " + sensor_solve.message;
-      return e;
-    }
+    const std::optional<Matrix> sensor_solve = deflated_solve("sensor adjoint solve", own_columns, adjoint_rhs);
+    if (!sensor_solve) return e;
     for (size_t a = 0; a < rows_of.size(); ++a) {
       const int i = rows_of[a];
       const MeasuredMode& m = problem_.measured[i];
       const int k = model_of[i];
       const Vector y = ws.sensors * U.col(k);
       Matrix A, B;  // np x ns: z_s^T K_j u and z_s^T M_j u
-      system_->derivative_forms(p, sensor_solve.solution.middleCols(a * ns, ns), U.col(k).replicate(1, ns), &A, &B);
+      system_->derivative_forms(p, sensor_solve->middleCols(a * ns, ns), U.col(k).replicate(1, ns), &A, &B);
       const Matrix dy = -(A - lambda[k] * B).transpose() - 0.5 * y * umu[i].transpose();  // ns x np
       for (int j = 0; j < np; ++j)
         e.jacobian.block(first_row[i], j, ns, 1) =
@@ -438,15 +438,8 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
         own_columns.push_back(nr + k);
       }
     }
-    const detail::DeflatedSolveResult direct =
-        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own_columns, sensitivity_rhs, precondition,
-                               options_.linear_tolerance, options_.max_linear_iterations);
-    e.linear_solves += direct.column_solves;
-    if (!direct.converged) {
-      e.ok = false;
-      e.message = "sensitivity solve: " + direct.message;
-      return e;
-    }
+    const std::optional<Matrix> direct = deflated_solve("sensitivity solve", own_columns, sensitivity_rhs);
+    if (!direct) return e;
     if (need == Need::Hessian) {
       e.hessian = Matrix::Zero(np, np);
       // Regularization: R = alpha/2 |x_r(p) - x_r0|^2, dx/dp = 1/p'(x), d2x/dp2 = -p''(x)/p'(x)^3.
@@ -460,7 +453,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       const MeasuredMode& m = problem_.measured[i];
       const int k = model_of[i];
       const Vector u = U.col(k);
-      const Matrix X = direct.solution.middleCols(a * np, np);
+      const Matrix X = direct->middleCols(a * np, np);
       Matrix dU = X;
       for (int j = 0; j < np; ++j) dU.col(j) -= 0.5 * umu[i][j] * u;
       const bool has_shape = m.shape.size() && m.shape_weight > 0;
