@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -262,6 +263,32 @@ TEST(Cli, FullVsReducedStudyRunsEveryStartAndMethodInParallel) {
   EXPECT_TRUE(std::filesystem::file_size(dir + "/full_vs_reduced.png") > 0);
   for (const auto& entry : std::filesystem::directory_iterator(dir))  // no run reports left behind
     EXPECT_EQ(entry.path().extension(), ".png") << entry.path();
+}
+
+// The square bar's bending modes come in pairs: the reduced tools on it, as a user runs them.
+// check-derivatives passes, calibrate warns that the paired eigenvalues nearly repeat, and the
+// bounds-scaling study writes its four histories and the plot.
+TEST(Cli, CheckDerivativesRepeatedModesAndBoundsScalingStudyOnASquareBar) {
+  const std::string problem =
+      WriteTempFile("square_bar.yaml", std::string(kBar) + "measured:\n  synthetic: {modes: [1, 2, 3], shapes: false}\n");
+  const std::string dir = std::filesystem::path(problem).parent_path().string() + "/bounds_scaling";
+  CliRun run = RunCli("check-derivatives " + problem);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("max relative error"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find(": OK"), std::string::npos) << run.output;
+
+  run = RunCli("calibrate " + problem + " --method reduced-lbfgs --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("model mode 1, whose eigenvalue nearly repeats that of mode 2"), std::string::npos)
+      << run.output;
+
+  run = RunCli("study bounds-scaling " + problem + " --out " + dir);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const std::string csv = ReadFile(dir + "/bounds_scaling.csv");
+  for (const char* name : {"no bounds, no scaling", "bounds, no scaling", "scaling, no bounds", "bounds and scaling"})
+    EXPECT_NE(run.output.find(name), std::string::npos) << name << "\n" << run.output;
+  EXPECT_GT(std::count(csv.begin(), csv.end(), '\n'), 4) << csv;
+  EXPECT_GT(std::filesystem::file_size(dir + "/bounds_scaling.png"), 0u);
 }
 
 TEST(Cli, ImportTestDataPrintsTheFileAndMapsOntoAProblem) {
