@@ -76,6 +76,12 @@ struct FullSpaceOptions {
   /// truth from 16 of the portal frame's 21 starts where `Relative` found it from 18: neither is
   /// better everywhere, so the objective's own form is the default.
   ObjectiveOptions::EigenvalueMisfit globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Relative;
+  /// Begin the globalization on the eigenvalue terms alone: every shape weight kappa_i set to 0
+  /// while the measured shapes still pair the modes by MAC, then go on with the whole objective.
+  /// Mode-shape terms add local minima that the eigenvalues alone do not have (README: the
+  /// portal frame's starts that L-BFGS loses on the whole objective reach the truth this way).
+  /// No effect without weighted shape terms or without weighted eigenvalue terms.
+  bool eigenvalues_first = false;
   /// Forward solve and MAC check of every u_i at every Ipopt iteration.
   bool mode_guard = true;
   /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).

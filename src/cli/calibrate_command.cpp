@@ -40,6 +40,7 @@ struct CalibrateArgs {
   int globalization = FullSpaceOptions().globalization_iterations;
   bool no_guard = false;
   std::string globalization_misfit = "relative";
+  bool eigenvalues_first = FullSpaceOptions().eigenvalues_first;
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -94,6 +95,7 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     options.globalization_misfit = args.globalization_misfit == "relative"
                                        ? ObjectiveOptions::EigenvalueMisfit::Relative
                                        : ObjectiveOptions::EigenvalueMisfit::Logarithmic;
+    options.eigenvalues_first = args.eigenvalues_first;
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -279,6 +281,9 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "fullspace: eigenvalue misfit of the globalization, relative (default, the objective's own) or "
                   "log (ln(lambda/lambda_m): no stationary points where the model is far too soft)")
       ->check(CLI::IsMember({"log", "relative"}));
+  cmd->add_flag("--eigenvalues-first,!--no-eigenvalues-first", args->eigenvalues_first,
+                "fullspace: begin the globalization on the eigenvalue terms alone (shapes still pair the modes), "
+                "then the whole objective (default: off)");
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");

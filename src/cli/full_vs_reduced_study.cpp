@@ -72,10 +72,12 @@ pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, cons
     argv_strings.push_back("--globalization");
     argv_strings.push_back("0");
   }
-  if (method == "fullspace-log-globalization") {
+  if (method == "fullspace-log-globalization" || method == "fullspace-eigenvalues-first-log") {
     argv_strings.push_back("--globalization-misfit");
     argv_strings.push_back("log");
   }
+  if (method == "fullspace-eigenvalues-first" || method == "fullspace-eigenvalues-first-log")
+    argv_strings.push_back("--eigenvalues-first");
   if (args.refine > 0) {
     argv_strings.push_back("--refine");
     argv_strings.push_back(std::to_string(args.refine));
@@ -318,7 +320,8 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("--seed", args->seed, "random seed (default 1)");
   std::vector<std::string> names = calibration_method_names();
   for (const char* variant :
-       {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-log-globalization"})
+       {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-log-globalization",
+        "fullspace-eigenvalues-first", "fullspace-eigenvalues-first-log"})
     names.push_back(variant);
   cmd->add_option("--methods", args->methods,
                   "any of: fullspace reduced-lbfgs reduced-newton reduced-gauss-newton, and the full-space "

@@ -101,11 +101,24 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     misfit_objective = std::make_unique<Objective>(problem, global_options);
   }
   Objective& global_objective = misfit_objective ? *misfit_objective : objective;
+  // The eigenvalues-first stage's objective: the same, with every shape weight 0.
+  const bool weighted_shapes = std::any_of(problem.measured.begin(), problem.measured.end(),
+                                           [](const MeasuredMode& m) { return m.shape.size() && m.shape_weight > 0; });
+  const bool weighted_eigenvalues = std::any_of(problem.measured.begin(), problem.measured.end(),
+                                                [](const MeasuredMode& m) { return m.weight > 0; });
+  std::unique_ptr<Problem> eigenvalue_problem;
+  std::unique_ptr<Objective> eigenvalue_objective;
+  if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes && weighted_eigenvalues) {
+    eigenvalue_problem = std::make_unique<Problem>(problem);
+    for (MeasuredMode& m : eigenvalue_problem->measured) m.shape_weight = 0;
+    eigenvalue_objective = std::make_unique<Objective>(*eigenvalue_problem, global_objective.options());
+  }
   auto finish = [&](FullSpaceStatus status, const std::string& message) {
     summary.status = status;
     if (summary.message.empty()) summary.message = message;
     summary.forward_solves = objective.forward_solves() - forward_solves_before +
-                             (misfit_objective ? misfit_objective->forward_solves() : 0);
+                             (misfit_objective ? misfit_objective->forward_solves() : 0) +
+                             (eigenvalue_objective ? eigenvalue_objective->forward_solves() : 0);
     summary.seconds = seconds_since(start);
     return summary;
   };
@@ -115,12 +128,12 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   summary.initial_objective = summary.final_objective = initial.value;
 
   // 1. Globalization: reduced L-BFGS always tracks the paired modes.
-  auto globalize = [&](const Vector& from, int iterations) {
+  auto globalize_on = [&](Objective& on, const Vector& from, int iterations) {
     ReducedOptions reduced;
     reduced.max_iterations = iterations;
     reduced.relative_gradient_tolerance = options.globalization_reduction;
     reduced.scaling = options.scaling;
-    const ReducedSummary run = minimize_reduced(global_objective, from, reduced);
+    const ReducedSummary run = minimize_reduced(on, from, reduced);
     for (IterationRecord record : run.history) {
       if (!summary.globalization_history.empty() && record.iteration == 0) continue;
       record.iteration += summary.globalization_iterations;
@@ -129,7 +142,10 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     summary.globalization_iterations += run.iterations;
     return run.final;
   };
-  Vector p = options.globalization_iterations > 0 ? globalize(start_point, options.globalization_iterations) : start_point;
+  auto globalize = [&](const Vector& from, int iterations) { return globalize_on(global_objective, from, iterations); };
+  Vector p = start_point;
+  if (eigenvalue_objective) p = globalize_on(*eigenvalue_objective, p, options.globalization_iterations);
+  if (options.globalization_iterations > 0) p = globalize(p, options.globalization_iterations);
 
   const ParameterScaling scaling = options.scaling ? ParameterScaling(problem.parameters, *options.scaling)
                                                    : ParameterScaling(problem.parameters);
