@@ -207,6 +207,9 @@ TEST(FullSpace, ConvergenceOrderIsEstimatedAboveTheRoundingFloor) {
   EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-4, 1e-8, 1e-15, 2e-15}), 2.0, 1e-9);
   EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-3, 1e-4}), 1.0, 1e-9);
   EXPECT_TRUE(std::isnan(estimate_convergence_order({1e-3, 1e-16})));
+  // A stalled step before the Newton step says nothing about the order: the triple before counts.
+  EXPECT_TRUE(std::isnan(estimate_convergence_order({1e-2, 0.99e-2, 1e-8, 1e-15, 2e-15})));
+  EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-4, 0.99e-4, 1e-12, 1e-15}), 2.0, 1e-9);
 }
 
 }  // namespace

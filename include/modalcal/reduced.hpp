@@ -113,8 +113,9 @@ struct ReducedSummary {
 };
 
 /// Order q of e_{k+1} ~ C e_k^q, \f$ q = \log(e_{k+1}/e_k) / \log(e_k/e_{k-1}) \f$, from the last
-/// three decreasing errors that lie above both `floor` and twice the smallest error (the
-/// rounding floor the run reached, where the rate is no longer visible); NaN if there are none.
+/// three errors that each fall at least 2x and lie above both `floor` and twice the smallest
+/// error (the rounding floor the run reached, where the rate is no longer visible); NaN if there
+/// are none.
 double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
 
 ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);

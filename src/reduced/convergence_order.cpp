@@ -18,7 +18,10 @@ double estimate_convergence_order(const std::vector<double>& errors, double floo
   const double limit = std::max(floor, 2 * reached);
   for (size_t k = e.size() - 1; k >= 2; --k) {
     const double a = e[k - 2], b = e[k - 1], c = e[k];
-    if (c <= limit || !(b < a && c < b)) continue;
+    // A rate shows only where both steps gain at least a factor 2: a nearly stalled step and then
+    // a large one (Newton entered close to the solution, 1e-2 -> 0.99e-2 -> 1e-8) would give
+    // an "order" of 1e3.
+    if (c <= limit || !(b <= 0.5 * a && c <= 0.5 * b)) continue;
     return std::log(c / b) / std::log(b / a);
   }
   return NAN;
