@@ -20,8 +20,9 @@
 /// \f$u_i\f$ is the i-th mode, and from far starts the iteration can slide onto higher modes or
 /// let two \f$u_i\f$ collapse onto one eigenpair. The driver therefore
 ///   1. globalizes with reduced-space L-BFGS (always on the right modes: every evaluation pairs a
-///      forward solve) until the projected gradient has fallen by `globalization_reduction`
-///      (optionally on the logarithmic eigenvalue misfit, `globalization_misfit`);
+///      forward solve) until the projected gradient has fallen by `globalization_reduction`,
+///      first on the eigenvalue terms alone (`eigenvalues_first`), then on the whole objective,
+///      both with the logarithmic eigenvalue misfit (`globalization_misfit`);
 ///   2. starts Ipopt from the forward solution there, signs aligned with the measured shapes,
 ///      multipliers from the adjoint (\f$y_i = w_i\f$, \f$z_i = 2\eta_i\f$, scaled), warm started
 ///      with a small barrier parameter;
@@ -72,16 +73,15 @@ struct FullSpaceOptions {
   /// Eigenvalue misfit the globalization minimizes (see ObjectiveOptions::EigenvalueMisfit); the
   /// Newton phase always minimizes the objective's own (relative) misfit, and the globalization's
   /// history records the values of the misfit it minimized. `Logarithmic` removes the stationary
-  /// points of far too soft starts (README: the bracket, 15 of 15 starts against 13) but found the
-  /// truth from 16 of the portal frame's 21 starts where `Relative` found it from 18: neither is
-  /// better everywhere, so the objective's own form is the default.
-  ObjectiveOptions::EigenvalueMisfit globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Relative;
+  /// points of far too soft starts, where the relative misfit saturates (README: the bracket's
+  /// starts 2 and 8, lost with `Relative` even with `eigenvalues_first`).
+  ObjectiveOptions::EigenvalueMisfit globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
   /// Begin the globalization on the eigenvalue terms alone: every shape weight kappa_i set to 0
   /// while the measured shapes still pair the modes by MAC, then go on with the whole objective.
-  /// Mode-shape terms add local minima that the eigenvalues alone do not have (README: the
-  /// portal frame's starts that L-BFGS loses on the whole objective reach the truth this way).
-  /// No effect without weighted shape terms or without weighted eigenvalue terms.
-  bool eigenvalues_first = false;
+  /// Mode-shape terms add local minima that the eigenvalues alone do not have (README: three of
+  /// the portal frame's 21 starts, lost without it, and the LFU problem's own start). No effect
+  /// without weighted shape terms or without weighted eigenvalue terms.
+  bool eigenvalues_first = true;
   /// Forward solve and MAC check of every u_i at every Ipopt iteration.
   bool mode_guard = true;
   /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).

@@ -39,7 +39,7 @@ struct CalibrateArgs {
   // Full-space tuning, for studies of what each safeguard buys.
   int globalization = FullSpaceOptions().globalization_iterations;
   bool no_guard = false;
-  std::string globalization_misfit = "relative";
+  std::string globalization_misfit = "log";
   bool eigenvalues_first = FullSpaceOptions().eigenvalues_first;
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
@@ -278,12 +278,12 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--globalization-misfit", args->globalization_misfit,
-                  "fullspace: eigenvalue misfit of the globalization, relative (default, the objective's own) or "
-                  "log (ln(lambda/lambda_m): no stationary points where the model is far too soft)")
+                  "fullspace: eigenvalue misfit of the globalization, log (default: ln(lambda/lambda_m), no "
+                  "stationary points where the model is far too soft) or relative (the objective's own)")
       ->check(CLI::IsMember({"log", "relative"}));
   cmd->add_flag("--eigenvalues-first,!--no-eigenvalues-first", args->eigenvalues_first,
                 "fullspace: begin the globalization on the eigenvalue terms alone (shapes still pair the modes), "
-                "then the whole objective (default: off)");
+                "then the whole objective (default: on)");
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");

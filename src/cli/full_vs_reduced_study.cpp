@@ -72,12 +72,12 @@ pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, cons
     argv_strings.push_back("--globalization");
     argv_strings.push_back("0");
   }
-  if (method == "fullspace-log-globalization" || method == "fullspace-eigenvalues-first-log") {
+  if (method == "fullspace-relative-globalization" || method == "fullspace-plain-globalization") {
     argv_strings.push_back("--globalization-misfit");
-    argv_strings.push_back("log");
+    argv_strings.push_back("relative");
   }
-  if (method == "fullspace-eigenvalues-first" || method == "fullspace-eigenvalues-first-log")
-    argv_strings.push_back("--eigenvalues-first");
+  if (method == "fullspace-no-eigenvalues-first" || method == "fullspace-plain-globalization")
+    argv_strings.push_back("--no-eigenvalues-first");
   if (args.refine > 0) {
     argv_strings.push_back("--refine");
     argv_strings.push_back(std::to_string(args.refine));
@@ -320,14 +320,15 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("--seed", args->seed, "random seed (default 1)");
   std::vector<std::string> names = calibration_method_names();
   for (const char* variant :
-       {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-log-globalization",
-        "fullspace-eigenvalues-first", "fullspace-eigenvalues-first-log"})
+       {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-relative-globalization",
+        "fullspace-no-eigenvalues-first", "fullspace-plain-globalization"})
     names.push_back(variant);
   cmd->add_option("--methods", args->methods,
                   "any of: fullspace reduced-lbfgs reduced-newton reduced-gauss-newton, and the full-space "
-                  "variants without safeguards fullspace-unguarded, fullspace-no-globalization, fullspace-naive, "
-                  "and fullspace-log-globalization (globalization on the logarithmic eigenvalue misfit; "
-                  "default: the first three)")
+                  "variants without a safeguard: fullspace-unguarded, fullspace-no-globalization, fullspace-naive "
+                  "(neither), fullspace-relative-globalization (globalization on the relative eigenvalue misfit), "
+                  "fullspace-no-eigenvalues-first (globalization on the whole objective from the start) and "
+                  "fullspace-plain-globalization (both); default: the first three")
       ->check(CLI::IsMember(names));
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
       ->check(CLI::PositiveNumber);

@@ -220,9 +220,19 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   for (int k = 0; k < num_model; ++k)
     if (!taken[k]) free_columns.push_back(k);
   if (!mac_rows.empty() && mac_rows.size() <= free_columns.size()) {
+    // Sparse sensors can see two modes alike (on a test model, MAC 0.99999 with modes at 1.7 and
+    // 3.2 Hz): rounding must not decide between them, or J jumps wherever the tie flips and a line
+    // search stalls there. Each score loses kMacTieWeight |ln(lambda_k / lambda_m)|, so a tie
+    // goes to the nearer eigenvalue while a MAC difference of more than ~1e-3 still decides.
+    constexpr double kMacTieWeight = 1e-3;
     Matrix score(mac_rows.size(), free_columns.size());
-    for (size_t a = 0; a < mac_rows.size(); ++a)
-      for (size_t b = 0; b < free_columns.size(); ++b) score(a, b) = mac_table(mac_rows[a], free_columns[b]);
+    for (size_t a = 0; a < mac_rows.size(); ++a) {
+      const double target = eigenvalue_of_hz(problem_.measured[mac_rows[a]].frequency_hz);
+      for (size_t b = 0; b < free_columns.size(); ++b) {
+        const double ratio = std::abs(lambda[free_columns[b]]) / target;
+        score(a, b) = mac_table(mac_rows[a], free_columns[b]) - kMacTieWeight * std::abs(std::log(std::max(ratio, 1e-300)));
+      }
+    }
     const std::vector<int> assigned = detail::maximize_assignment(score);
     for (size_t a = 0; a < mac_rows.size(); ++a) model_of[mac_rows[a]] = free_columns[assigned[a]];
   }
