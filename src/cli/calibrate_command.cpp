@@ -39,7 +39,8 @@ struct CalibrateArgs {
   // Full-space tuning, for studies of what each safeguard buys.
   int globalization = FullSpaceOptions().globalization_iterations;
   bool no_guard = false;
-  std::string globalization_misfit = "log";
+  std::string globalization_misfit =
+      FullSpaceOptions().globalization_misfit == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "log";
   bool eigenvalues_first = FullSpaceOptions().eigenvalues_first;
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
