@@ -41,7 +41,7 @@ struct CalibrateArgs {
   bool no_guard = false;
   std::string globalization_misfit =
       FullSpaceOptions().globalization_misfit == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "log";
-  bool eigenvalues_first = FullSpaceOptions().eigenvalues_first;
+  bool no_eigenvalues_first = false;
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -96,7 +96,7 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     options.globalization_misfit = args.globalization_misfit == "relative"
                                        ? ObjectiveOptions::EigenvalueMisfit::Relative
                                        : ObjectiveOptions::EigenvalueMisfit::Logarithmic;
-    options.eigenvalues_first = args.eigenvalues_first;
+    if (args.no_eigenvalues_first) options.eigenvalues_first = false;
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -282,9 +282,9 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "fullspace: eigenvalue misfit of the globalization, log (default: ln(lambda/lambda_m), no "
                   "stationary points where the model is far too soft) or relative (the objective's own)")
       ->check(CLI::IsMember({"log", "relative"}));
-  cmd->add_flag("--eigenvalues-first,!--no-eigenvalues-first", args->eigenvalues_first,
-                "fullspace: begin the globalization on the eigenvalue terms alone (shapes still pair the modes), "
-                "then the whole objective (default: on)");
+  cmd->add_flag("--no-eigenvalues-first", args->no_eigenvalues_first,
+                "fullspace: globalize on the whole objective from the start (default: on the eigenvalue terms "
+                "alone first, the shapes still pairing the modes)");
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");
