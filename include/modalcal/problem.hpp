@@ -60,6 +60,9 @@ struct MeasuredMode {
   Vector shape;               ///< at Problem::sensors, empty if not measured
   PairingRule pairing;
   int source_line = 0;        ///< line in the problem file, for messages
+  /// Whether J has a shape term for this mode: a measured shape with a positive weight. (A shape
+  /// with weight 0 still pairs the mode by MAC.)
+  bool has_shape_term() const { return shape.size() > 0 && shape_weight > 0; }
 };
 
 struct ProblemOptions {

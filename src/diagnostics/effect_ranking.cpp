@@ -81,7 +81,7 @@ Misfit misfit_of(const Objective& objective, const Evaluation& e, int num_parame
   for (const PairedMode& pair : e.pairs) {
     const MeasuredMode& measured = problem.measured[pair.measured];
     if (measured.weight > 0) m.data += 1;
-    if (measured.shape_weight > 0 && measured.shape.size() > 1) m.data += static_cast<int>(measured.shape.size()) - 1;
+    if (measured.has_shape_term() && measured.shape.size() > 1) m.data += static_cast<int>(measured.shape.size()) - 1;
   }
   m.dof = std::max(1, m.data - num_parameters);
   return m;

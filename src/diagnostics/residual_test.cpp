@@ -90,7 +90,7 @@ Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise) {
   Problem weighted = problem;
   for (MeasuredMode& m : weighted.measured) {
     if (m.weight > 0) m.weight = 1 / (4 * noise.frequency * noise.frequency);
-    if (m.shape_weight > 0 && m.shape.size() > 0 && noise.shape > 0) {
+    if (m.has_shape_term() && noise.shape > 0) {
       const double sigma = noise.shape * m.shape.cwiseAbs().maxCoeff();
       m.shape_weight = m.shape.squaredNorm() / (sigma * sigma);
     }
@@ -121,7 +121,7 @@ ResidualTest test_residual(const Objective& objective, const Evaluation& evaluat
       m.frequency_chi2 = std::pow(m.frequency_error / noise.frequency, 2);
       m.dof += 1;
     }
-    const bool shape_tested = measured.shape_weight > 0 && measured.shape.size() > 1 && noise.shape > 0 && pair.mac >= 0;
+    const bool shape_tested = measured.has_shape_term() && measured.shape.size() > 1 && noise.shape > 0 && pair.mac >= 0;
     if (shape_tested) {
       const Vector y = sensors * evaluation.modal.modes.col(pair.model);
       const Vector fitted = (y.dot(measured.shape) / y.squaredNorm()) * y;

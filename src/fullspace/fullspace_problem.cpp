@@ -36,7 +36,7 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
       np_(objective.num_parameters()) {
   for (size_t m = 0; m < problem_.measured.size(); ++m) {
     const MeasuredMode& mode = problem_.measured[m];
-    const bool shape = mode.shape.size() > 0 && mode.shape_weight > 0;
+    const bool shape = mode.has_shape_term();
     if (mode.weight <= 0 && !shape) continue;  // switched off: not an unknown at all
     measured_.push_back(static_cast<int>(m));
     shape_.push_back(shape ? std::make_unique<ShapeMisfit>(mode.shape, mode.shape_weight) : nullptr);

@@ -103,7 +103,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   Objective& global_objective = misfit_objective ? *misfit_objective : objective;
   // The eigenvalues-first stage's objective: the same, with every shape weight 0.
   const bool weighted_shapes = std::any_of(problem.measured.begin(), problem.measured.end(),
-                                           [](const MeasuredMode& m) { return m.shape.size() && m.shape_weight > 0; });
+                                           [](const MeasuredMode& m) { return m.has_shape_term(); });
   const bool weighted_eigenvalues = std::any_of(problem.measured.begin(), problem.measured.end(),
                                                 [](const MeasuredMode& m) { return m.weight > 0; });
   std::unique_ptr<Problem> eigenvalue_problem;

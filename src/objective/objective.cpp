@@ -376,7 +376,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   }
   Matrix adjoint_solution(U.rows(), 0);
   if (!shape_modes.empty()) {
-    const std::optional<Matrix> adjoint = deflated_solve("adjoint solve", own, rhs);
+    std::optional<Matrix> adjoint = deflated_solve("adjoint solve", own, rhs);
     if (!adjoint) return e;
     // w_s^T (K_j - lambda M_j) u for every shape at once.
     Matrix shape_u(U.rows(), static_cast<Eigen::Index>(shape_modes.size()));
@@ -388,7 +388,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       e.gradient += shape_a.col(s) - lambda[k] * shape_b.col(s);
       e.adjoint.col(shape_modes[s]) += adjoint->col(s);
     }
-    adjoint_solution = *adjoint;
+    adjoint_solution = std::move(*adjoint);
   }
 
   std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
@@ -406,7 +406,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     // part Z^T M u vanishes (S M u = 0). One solve per sensor reading instead of per parameter.
     std::vector<int> rows_of, own_columns;
     for (int i = 0; i < num_measured; ++i)
-      if (problem_.measured[i].shape.size() && problem_.measured[i].shape_weight > 0) rows_of.push_back(i);
+      if (problem_.measured[i].has_shape_term()) rows_of.push_back(i);
     const Matrix sensor_columns = Matrix(ws.sensors.transpose());
     Matrix adjoint_rhs(U.rows(), static_cast<Eigen::Index>(rows_of.size()) * ns);
     for (size_t a = 0; a < rows_of.size(); ++a) {
@@ -433,7 +433,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
     // for the shape rows of the Jacobian, and for every paired mode when the Hessian is wanted.
     std::vector<int> modes_needed;
     for (int i = 0; i < num_measured; ++i)
-      if (need == Need::Hessian || (problem_.measured[i].shape.size() && problem_.measured[i].shape_weight > 0))
+      if (need == Need::Hessian || problem_.measured[i].has_shape_term())
         modes_needed.push_back(i);
     Matrix sensitivity_rhs(U.rows(), static_cast<Eigen::Index>(modes_needed.size()) * np);
     std::vector<int> own_columns;
@@ -466,7 +466,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       const Matrix X = direct->middleCols(a * np, np);
       Matrix dU = X;
       for (int j = 0; j < np; ++j) dU.col(j) -= 0.5 * umu[i][j] * u;
-      const bool has_shape = m.shape.size() && m.shape_weight > 0;
+      const bool has_shape = m.has_shape_term();
       if (has_shape) {
         const Vector y = ws.sensors * u;
         for (int j = 0; j < np; ++j)
