@@ -234,7 +234,7 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     r.kkt_solves = summary.kkt_solves;
     r.unknowns = summary.num_unknowns;
     r.constraints = summary.num_constraints;
-    r.ipopt_s = summary.ipopt_seconds;
+    r.ipopt_s = summary.newton_seconds;
     r.guard_s = summary.guard_seconds;
     r.convergence_order = summary.convergence_order;
     if (summary.final.size()) r.final_error = parameter_error(problem, summary.final);

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs the Debian 12 packages the project builds with, only those missing (idempotent).
-# Why each: Ipopt+MUMPS (full-space NLP), Eigen (dense/sparse containers), SuiteSparse (CHOLMOD
+# Why each: Ipopt+MUMPS (full-space NLP; MUMPS also directly, for the block Newton solver), Eigen (dense/sparse containers), SuiteSparse (CHOLMOD
 # supernodal Cholesky), OpenBLAS (CHOLMOD is 7-10x slower on reference BLAS), Spectra (Lanczos),
 # GoogleTest, yaml-cpp (problem files with line numbers), CLI11, nlohmann-json, gnuplot (plots),
 # VTK's Python module (the test that reads the VTU files back with an independent reader),
@@ -11,7 +11,7 @@
 set -euo pipefail
 packages=(
   g++ cmake make pkg-config
-  coinor-libipopt-dev libeigen3-dev libsuitesparse-dev libopenblas-dev libspectra-dev
+  coinor-libipopt-dev libmumps-seq-dev libeigen3-dev libsuitesparse-dev libopenblas-dev libspectra-dev
   libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox python3-vtk9
   libgmsh-dev gmsh libexodusii-dev
 )

@@ -54,15 +54,27 @@
 namespace modalcal {
 
 struct FullSpaceOptions {
-  /// Ipopt iterations, over all restarts. Range: >= 1.
+  /// Newton-phase (Ipopt or block SQP) iterations, over all restarts. Range: >= 1.
   int max_iterations = 200;
   /// Ipopt `tol`: the scaled KKT error (primal and dual infeasibility, complementarity) at
   /// which it stops. Range: (0, 1).
   double tolerance = 1e-10;
   /// Barrier parameter Ipopt starts from (warm start). Range: > 0.
   double mu_init = 1e-9;
+  /// Who solves the Newton phase's KKT systems.
+  ///  - `Ipopt`: Ipopt's interior-point Newton method, MUMPS on the whole KKT matrix of order
+  ///    2 l (n + 1) + m (the design's reference path; its cost grows with the fill of the coupled
+  ///    saddle blocks: README, performance).
+  ///  - `BlockElimination`: an SQP iteration on the same problem and derivatives whose KKT
+  ///    systems are solved per mode: one sparse LDL^T of the bordered
+  ///    \f$[[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ (order n + 1) per mode and an m x m
+  ///    Schur complement on the parameters, whose Cholesky is the inertia test. Bounds on p by an
+  ///    active-set QP, steps by an l1-merit line search (src/fullspace/block_newton.hpp).
+  enum class NewtonSolver { Ipopt, BlockElimination };
+  NewtonSolver newton_solver = NewtonSolver::Ipopt;
   enum class Hessian { Exact, LimitedMemory };
-  /// Exact Lagrangian Hessian (Newton, quadratic locally) or Ipopt's L-BFGS approximation.
+  /// Exact Lagrangian Hessian (Newton, quadratic locally) or Ipopt's L-BFGS approximation
+  /// (Ipopt only: BlockElimination always uses the exact Hessian).
   Hessian hessian = Hessian::Exact;
   /// Reduced L-BFGS iterations before the full-space Newton phase at most; 0 disables it.
   /// Range: >= 0.
@@ -135,11 +147,17 @@ enum class FullSpaceStatus {
   ForwardSolveFailed,  ///< the start could not be evaluated
 };
 std::string to_string(FullSpaceStatus status);
+/// "ipopt" or "block", as the CLI's --newton-solver spells them.
+std::string to_string(FullSpaceOptions::NewtonSolver solver);
 
 struct FullSpaceSummary {
   FullSpaceStatus status = FullSpaceStatus::ForwardSolveFailed;
   std::string message;
-  std::string ipopt_status;      ///< Ipopt's return status of the last attempt
+  std::string newton_solver;     ///< to_string(FullSpaceOptions::newton_solver)
+  /// Status of the Newton phase's last attempt: Ipopt's return status (e.g. Solve_Succeeded), or
+  /// the block solver's (Converged, Maximum_Iterations_Exceeded, Line_Search_Failed,
+  /// Singular_Mode_Block, User_Requested_Stop).
+  std::string newton_status;
   Vector initial, final;         ///< physical parameters
   double initial_objective = NAN, final_objective = NAN;
   int iterations = 0;            ///< Ipopt iterations over all attempts
@@ -148,7 +166,7 @@ struct FullSpaceSummary {
   int forward_solves = 0;        ///< reduced phase, starts, guard and final check
   int kkt_solves = 0;            ///< Hessian evaluations = Newton (KKT) systems
   int num_unknowns = 0, num_constraints = 0;
-  double seconds = 0, ipopt_seconds = 0, guard_seconds = 0;
+  double seconds = 0, newton_seconds = 0, guard_seconds = 0;
   std::vector<IterationRecord> globalization_history;
   std::vector<KktRecord> kkt_history;
   /// Estimated order q of e_{k+1} ~ e_k^q from the primal-dual infeasibility of the last

@@ -42,6 +42,7 @@ struct CalibrateArgs {
   std::string globalization_misfit =
       FullSpaceOptions().globalization_misfit == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "log";
   bool no_eigenvalues_first = false;
+  std::string newton_solver = to_string(FullSpaceOptions().newton_solver);
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -97,6 +98,10 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
                                        ? ObjectiveOptions::EigenvalueMisfit::Relative
                                        : ObjectiveOptions::EigenvalueMisfit::Logarithmic;
     if (args.no_eigenvalues_first) options.eigenvalues_first = false;
+    options.newton_solver = args.newton_solver == "block" ? FullSpaceOptions::NewtonSolver::BlockElimination
+                                                          : FullSpaceOptions::NewtonSolver::Ipopt;
+    if (options.newton_solver != FullSpaceOptions::NewtonSolver::Ipopt && args.limited_memory)
+      throw InputError("--limited-memory: Ipopt's L-BFGS Hessian needs --newton-solver ipopt");
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -285,6 +290,12 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--no-eigenvalues-first", args->no_eigenvalues_first,
                 "fullspace: globalize on the whole objective from the start (default: on the eigenvalue terms "
                 "alone first, the shapes still pairing the modes)");
+  cmd->add_option("--newton-solver", args->newton_solver,
+                  "fullspace: who solves the Newton phase's KKT systems: ipopt (interior point, MUMPS on the whole "
+                  "KKT matrix) or block (SQP, one factorization per mode and a Schur complement on the parameters; "
+                  "much faster on large meshes)")
+      ->check(CLI::IsMember({"ipopt", "block"}))
+      ->default_str(args->newton_solver);
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");

@@ -63,7 +63,8 @@ bool is_fullspace(const std::string& method) { return method.rfind("fullspace", 
 // safe once BLAS or OpenMP threads exist), started here and read back by read_report.
 pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, const std::string& method,
                      const Vector& start, const std::string& report_path) {
-  // Variants of the full-space method without its safeguards, to measure what each one buys.
+  // Variants of the full-space method without its safeguards, to measure what each one buys, and
+  // with the other Newton solver.
   std::vector<std::string> argv_strings = {"/proc/self/exe", "calibrate", args.problem, "--method",
                                            is_fullspace(method) ? "fullspace" : method, "--quiet", "--json", report_path,
                                            "--max-iterations", "300"};
@@ -78,6 +79,10 @@ pid_t start_isolated(const FullVsReducedArgs& args, const Problem& problem, cons
   }
   if (method == "fullspace-no-eigenvalues-first" || method == "fullspace-plain-globalization")
     argv_strings.push_back("--no-eigenvalues-first");
+  if (method == "fullspace-block") {
+    argv_strings.push_back("--newton-solver");
+    argv_strings.push_back("block");
+  }
   if (args.refine > 0) {
     argv_strings.push_back("--refine");
     argv_strings.push_back(std::to_string(args.refine));
@@ -321,14 +326,15 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   std::vector<std::string> names = calibration_method_names();
   for (const char* variant :
        {"fullspace-unguarded", "fullspace-no-globalization", "fullspace-naive", "fullspace-relative-globalization",
-        "fullspace-no-eigenvalues-first", "fullspace-plain-globalization"})
+        "fullspace-no-eigenvalues-first", "fullspace-plain-globalization", "fullspace-block"})
     names.push_back(variant);
   cmd->add_option("--methods", args->methods,
                   "any of: fullspace reduced-lbfgs reduced-newton reduced-gauss-newton, and the full-space "
                   "variants without a safeguard: fullspace-unguarded, fullspace-no-globalization, fullspace-naive "
                   "(neither), fullspace-relative-globalization (globalization on the relative eigenvalue misfit), "
                   "fullspace-no-eigenvalues-first (globalization on the whole objective from the start) and "
-                  "fullspace-plain-globalization (both); default: the first three")
+                  "fullspace-plain-globalization (both); and fullspace-block, every safeguard with the block-"
+                  "elimination Newton solver (--newton-solver block); default: the first three")
       ->check(CLI::IsMember(names));
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
       ->check(CLI::PositiveNumber);

@@ -186,6 +186,13 @@ void FullSpaceProblem::unpack_multipliers(const double* y, Matrix* w, Vector* et
   }
 }
 
+Vector FullSpaceProblem::mode_row_scale(int i) const {
+  Vector s(n_ + 1);
+  s.head(n_) = row_scale_[i] / mass_scale_;  // r_i = D (K / lambda_ref - t M) u~ / m_bar
+  s[n_] = -normalization_scale_ / (mode_scale_ * mode_scale_);  // dn_i/du~ = n_s M u~ / s_u^2
+  return s;
+}
+
 void FullSpaceProblem::bounds(double* lower, double* upper) const {
   const int q0 = num_modes() * (n_ + 1);
   std::fill(lower, lower + q0, -kNoBound);

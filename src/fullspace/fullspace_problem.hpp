@@ -31,6 +31,8 @@ class FullSpaceProblem {
   Vector pack(const Matrix& modes, const Vector& eigenvalues, const Vector& p) const;
   /// Physical modes, eigenvalues and parameters of x.
   void unpack(const double* x, Matrix* modes, Vector* eigenvalues, Vector* p) const;
+  /// Physical parameters of x.
+  Vector parameters(const double* x) const { return scaling_.to_physical(scaled_parameters(x)); }
   /// Constraint multipliers from the physical ones (w_i of (K - lambda_i M) u_i = 0 and eta_i of
   /// u_i^T M u_i - 1 = 0), and back.
   Vector pack_multipliers(const Matrix& w, const Vector& eta) const;
@@ -46,6 +48,16 @@ class FullSpaceProblem {
   const SparseLayout& hessian_layout() const { return hessian_; }
   /// Lower triangle of sigma * Hessian(objective) + sum_k y_k Hessian(c_k).
   void hessian_values(const double* x, double sigma, const double* y, double* values);
+
+  /// Index of u~_i's first entry, of t_i and of q_0 in x; of r_i's first row and of n_i in c.
+  int mode_offset(int i) const { return i * n_; }
+  int eigenvalue_index(int i) const { return num_modes() * n_ + i; }
+  int parameter_offset() const { return num_modes() * (n_ + 1); }
+  int normalization_row(int i) const { return num_modes() * n_ + i; }
+  /// s_i with: the Jacobian block of mode i (rows r_i, n_i; columns u~_i, t_i) equals diag(s_i) B_i,
+  /// B_i = [[K / lambda_ref,i - t_i M, -M u~_i], [-(M u~_i)^T, 0]] symmetric (the bordered
+  /// eigen-matrix), so that one symmetric factorization serves A_i and A_i^T.
+  Vector mode_row_scale(int i) const;
 
   /// Sign (+1 or -1) that aligns a physical mode with the measured shape of full-space mode i at
   /// the sensors (+1 without a shape).

@@ -20,6 +20,10 @@ std::string to_string(FullSpaceStatus status) {
   return "?";
 }
 
+std::string to_string(FullSpaceOptions::NewtonSolver solver) {
+  return solver == FullSpaceOptions::NewtonSolver::Ipopt ? "ipopt" : "block";
+}
+
 double KktRecord::kkt_error() const { return std::max({primal_infeasibility, dual_infeasibility, complementarity}); }
 
 bool FullSpaceOptions::IsValid(std::string* error) const {
@@ -47,9 +51,9 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
 std::string FullSpaceSummary::BriefReport() const {
   char line[400];
   std::snprintf(line, sizeof line,
-                "fullspace: %s (Ipopt %s, mode check %s) after %d Ipopt iterations (%d restarts) and %d globalization "
+                "fullspace: %s (%s %s, mode check %s) after %d Newton iterations (%d restarts) and %d globalization "
                 "iterations, objective %.6e -> %.6e, %d forward solves, %d KKT solves, order %.2f, %.2f s",
-                to_string(status).c_str(), ipopt_status.c_str(), mode_check.passed ? "passed" : "failed", iterations,
+                to_string(status).c_str(), newton_solver.c_str(), newton_status.c_str(), mode_check.passed ? "passed" : "failed", iterations,
                 restarts, globalization_iterations, initial_objective, final_objective, forward_solves, kkt_solves,
                 convergence_order, seconds);
   return line;
@@ -59,8 +63,8 @@ std::string FullSpaceSummary::FullReport() const {
   std::string out = BriefReport() + "\n" + message + "\n";
   if (!mode_check.passed && !mode_check.reason.empty()) out += "mode check: " + mode_check.reason + "\n";
   char line[240];
-  std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Ipopt %.2f s, mode guard %.2f s, total %.2f s\n",
-                num_unknowns, num_constraints, ipopt_seconds, guard_seconds, seconds);
+  std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Newton phase %.2f s, mode guard %.2f s, total %.2f s\n",
+                num_unknowns, num_constraints, newton_seconds, guard_seconds, seconds);
   out += line;
   std::snprintf(line, sizeof line, "%5s %14s %11s %11s %11s %10s %12s %8s\n", "iter", "objective", "inf_pr", "inf_du",
                 "compl", "mu", "param error", "min MAC");

@@ -1,4 +1,4 @@
-// The full-space driver: globalization, start, guarded Ipopt Newton phase with restarts, and
+// The full-space driver: globalization, start, guarded Newton phase (Ipopt or block SQP) with restarts, and
 // the final check against a forward solve (see include/modalcal/fullspace.hpp).
 
 #include <algorithm>
@@ -7,6 +7,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "fullspace/block_newton.hpp"
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/ipopt/ipopt_run.hpp"
 #include "modalcal/fullspace.hpp"
@@ -90,7 +91,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   const int forward_solves_before = objective.forward_solves();
   const std::optional<Vector> truth = truth_of(problem);
   FullSpaceSummary summary;
-  // Ipopt keeps the parameters within their bounds: so does the start.
+  // The Newton phase keeps the parameters within their bounds: so does the start.
   const Vector start_point = p0.cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
   summary.initial = summary.final = start_point;
   // The globalization's objective: the same data and options with its own eigenvalue misfit.
@@ -165,7 +166,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   summary.num_unknowns = fp.num_variables();
   summary.num_constraints = fp.num_constraints();
 
-  detail::IpoptRunResult run;
+  const std::string solver_name = to_string(options.newton_solver);
+  summary.newton_solver = solver_name;
+  detail::NewtonPhaseResult run;
   bool converged_run = false;
   size_t attempt_start = 0;  // first KKT record of the last attempt
   for (;;) {
@@ -190,7 +193,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     bool guard_fired = false;
     const int offset = summary.iterations;
     attempt_start = summary.kkt_history.size();
-    detail::IpoptCallback callback = [&](const detail::IpoptIteration& info, const double* x) {
+    detail::NewtonCallback callback = [&](const detail::NewtonIteration& info, const double* x) {
       KktRecord record;
       record.iteration = offset + info.iteration;
       record.objective = info.objective;
@@ -226,19 +229,27 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
       if (options.progress) options.progress(record);
       return !guard_fired;
     };
-    detail::IpoptRunOptions ipopt;
-    ipopt.max_iterations = std::max(1, options.max_iterations - summary.iterations);
-    ipopt.tolerance = options.tolerance;
-    ipopt.mu_init = options.mu_init;
-    ipopt.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
-    ipopt.derivative_test = options.ipopt_derivative_test;
-    ipopt.print_level = options.print_level;
-    const Clock::time_point ipopt_start = Clock::now();
-    run = detail::run_ipopt(fp, x0, y0, ipopt, callback);
-    summary.ipopt_seconds += seconds_since(ipopt_start);
+    detail::NewtonPhaseOptions newton;
+    newton.max_iterations = std::max(1, options.max_iterations - summary.iterations);
+    newton.tolerance = options.tolerance;
+    newton.mu_init = options.mu_init;
+    newton.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
+    newton.derivative_test = options.ipopt_derivative_test;
+    newton.print_level = options.print_level;
+    const Clock::time_point newton_start = Clock::now();
+    run = options.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
+              ? detail::run_ipopt(fp, x0, y0, newton, callback)
+              : detail::run_block_newton(fp, x0, y0, newton, callback);
+    summary.newton_seconds += seconds_since(newton_start);
     summary.iterations += run.iterations;
     summary.kkt_solves += run.hessian_evaluations;
-    summary.ipopt_status = run.status;
+    summary.newton_status = run.status;
+    if (run.outside_newton_region && summary.restarts < options.max_restarts &&
+        summary.iterations < options.max_iterations) {
+      ++summary.restarts;  // more reduced iterations from where Newton stalled, then Newton again
+      p = globalize(fp.parameters(run.x.data()), std::max(options.globalization_iterations, 10));
+      continue;
+    }
     if (!(guard_fired && run.stopped_by_callback)) {
       converged_run = run.solved;
       break;
@@ -271,9 +282,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     errors.push_back(std::max(summary.kkt_history[k].primal_infeasibility, summary.kkt_history[k].dual_infeasibility));
   summary.convergence_order = estimate_convergence_order(errors);
 
-  if (converged_run && summary.mode_check.passed) return finish(FullSpaceStatus::Converged, "Ipopt: " + run.status);
+  if (converged_run && summary.mode_check.passed) return finish(FullSpaceStatus::Converged, solver_name + ": " + run.status);
   if (converged_run) return finish(FullSpaceStatus::WrongModes, summary.mode_check.reason);
-  if (run.max_iterations) return finish(FullSpaceStatus::MaxIterations, "Ipopt: " + run.status);
+  if (run.max_iterations) return finish(FullSpaceStatus::MaxIterations, solver_name + ": " + run.status);
   return finish(FullSpaceStatus::Failed, run.message);
 }
 

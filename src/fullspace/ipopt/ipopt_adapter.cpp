@@ -69,7 +69,7 @@ std::string explain(Ipopt::ApplicationReturnStatus status) {
 class CalibrationTnlp : public Ipopt::TNLP {
  public:
   CalibrationTnlp(FullSpaceProblem& problem, const Vector& x0, const Vector& y0, double mu_init,
-                  const IpoptCallback& callback, IpoptRunResult* result)
+                  const NewtonCallback& callback, NewtonPhaseResult* result)
       : problem_(problem), x0_(x0), y0_(y0), mu_init_(mu_init), callback_(callback), result_(result) {}
 
   bool get_nlp_info(Ipopt::Index& n, Ipopt::Index& m, Ipopt::Index& nnz_jac_g, Ipopt::Index& nnz_h_lag,
@@ -139,7 +139,7 @@ class CalibrationTnlp : public Ipopt::TNLP {
                              const Ipopt::IpoptData* data, Ipopt::IpoptCalculatedQuantities* quantities) override {
     result_->iterations = iter;
     if (!callback_) return true;
-    IpoptIteration info;
+    NewtonIteration info;
     info.iteration = iter;
     info.objective = objective;
     info.primal_infeasibility = inf_pr;
@@ -174,17 +174,17 @@ class CalibrationTnlp : public Ipopt::TNLP {
   const Vector& x0_;
   const Vector& y0_;
   double mu_init_;
-  const IpoptCallback& callback_;
-  IpoptRunResult* result_;
+  const NewtonCallback& callback_;
+  NewtonPhaseResult* result_;
   std::vector<double> lower_, upper_;
   Vector current_;
 };
 
 }  // namespace
 
-IpoptRunResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const Vector& y0, const IpoptRunOptions& options,
-                         const IpoptCallback& callback) {
-  IpoptRunResult result;
+NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const Vector& y0, const NewtonPhaseOptions& options,
+                         const NewtonCallback& callback) {
+  NewtonPhaseResult result;
   Ipopt::SmartPtr<Ipopt::TNLP> tnlp = new CalibrationTnlp(problem, x0, y0, options.mu_init, callback, &result);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   Ipopt::OptionsList& o = *app->Options();
@@ -216,7 +216,6 @@ IpoptRunResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const Vect
   }
   Ipopt::ApplicationReturnStatus status = app->Initialize();
   if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(tnlp);
-  result.status_code = static_cast<int>(status);
   result.status = status_name(status);
   result.solved = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
   result.stopped_by_callback = status == Ipopt::User_Requested_Stop;

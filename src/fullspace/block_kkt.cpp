@@ -1,0 +1,174 @@
+#include "fullspace/block_kkt.hpp"
+
+#include <stdexcept>
+
+namespace modalcal::detail {
+
+namespace {
+
+// Global index of local entry `a` (0..n) of mode i's unknowns (u~_i, t_i) or rows (r_i, n_i):
+// both are laid out as l blocks of n, then l scalars.
+int global_of(int a, int i, int n, int l) { return a < n ? i * n + a : l * n + i; }
+
+}  // namespace
+
+BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
+    : problem_(problem), n_(problem.num_dofs()), l_(problem.num_modes()), np_(problem.num_parameters()) {
+  const int q0 = problem.parameter_offset();
+  auto split = [&](int index, int* mode, int* local) {  // unknown or row -> (mode, local); mode -1: q_local
+    if (index >= q0) {
+      *mode = -1;
+      *local = index - q0;
+    } else if (index < l_ * n_) {
+      *mode = index / n_;
+      *local = index % n_;
+    } else {
+      *mode = index - l_ * n_;
+      *local = n_;
+    }
+  };
+  const SparseLayout& jac = problem.jacobian_layout();
+  jac_rows_.resize(jac.nonzeros());
+  jac_cols_.resize(jac.nonzeros());
+  jac.structure(jac_rows_.data(), jac_cols_.data());
+  jac_slots_.resize(jac.nonzeros());
+  for (int k = 0; k < jac.nonzeros(); ++k) {
+    Slot& s = jac_slots_[k];
+    int row_mode, col_mode;
+    split(jac_rows_[k], &row_mode, &s.row);
+    split(jac_cols_[k], &col_mode, &s.col);
+    s.mode = row_mode;
+    if (col_mode == -1)
+      s.kind = Slot::ParameterColumn;
+    else if (col_mode != row_mode)
+      throw std::logic_error("BlockKktSystem: the constraint Jacobian couples two modes");
+  }
+  const SparseLayout& hes = problem.hessian_layout();
+  hes_rows_.resize(hes.nonzeros());
+  hes_cols_.resize(hes.nonzeros());
+  hes.structure(hes_rows_.data(), hes_cols_.data());
+  hes_slots_.resize(hes.nonzeros());
+  for (int k = 0; k < hes.nonzeros(); ++k) {
+    Slot& s = hes_slots_[k];
+    int row_mode, col_mode, row, col;
+    split(hes_rows_[k], &row_mode, &row);
+    split(hes_cols_[k], &col_mode, &col);
+    if (row_mode == -1 && col_mode == -1) {
+      s = {-1, row, col, Slot::ParameterPair};
+    } else if (row_mode == -1 || col_mode == -1) {  // C_i(local unknown, parameter)
+      s = {row_mode == -1 ? col_mode : row_mode, row_mode == -1 ? col : row, row_mode == -1 ? row : col,
+           Slot::ParameterColumn};
+    } else if (row_mode == col_mode) {
+      s = {row_mode, row, col, Slot::ModeBlock};
+    } else {
+      throw std::logic_error("BlockKktSystem: the Lagrangian Hessian couples two modes");
+    }
+  }
+  jac_values_.resize(jac.nonzeros());
+  hes_values_.resize(hes.nonzeros());
+  modes_.resize(l_);
+  mode_index_.assign(l_, 0);
+}
+
+bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error) {
+  const int nv = problem_.num_variables();
+  objective_gradient_.resize(nv);
+  problem_.objective_gradient(x.data(), objective_gradient_.data());
+  constraints_.resize(problem_.num_constraints());
+  problem_.constraints(x.data(), constraints_.data());
+  problem_.jacobian_values(x.data(), jac_values_.data());
+  problem_.hessian_values(x.data(), 1.0, y.data(), hes_values_.data());
+  lagrangian_gradient_ = objective_gradient_;
+  for (size_t k = 0; k < jac_values_.size(); ++k) lagrangian_gradient_[jac_cols_[k]] += jac_values_[k] * y[jac_rows_[k]];
+
+  // Gather every mode's blocks in one pass over the entries.
+  std::vector<std::vector<Eigen::Triplet<double, int>>> bordered(l_), hessian(l_);
+  std::vector<Matrix> P(l_, Matrix::Zero(n_ + 1, np_)), C(l_, Matrix::Zero(n_ + 1, np_));
+  std::vector<Vector> scale(l_);
+  for (int i = 0; i < l_; ++i) scale[i] = problem_.mode_row_scale(i);
+  for (size_t k = 0; k < jac_values_.size(); ++k) {
+    const Slot& s = jac_slots_[k];
+    if (s.kind == Slot::ParameterColumn)
+      P[s.mode](s.row, s.col) = jac_values_[k];
+    else if (s.row >= s.col)  // B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle suffices
+      bordered[s.mode].emplace_back(s.row, s.col, jac_values_[k] / scale[s.mode][s.row]);
+  }
+  Matrix Wqq = Matrix::Zero(np_, np_);
+  for (size_t k = 0; k < hes_values_.size(); ++k) {
+    const Slot& s = hes_slots_[k];
+    const double v = hes_values_[k];
+    if (s.kind == Slot::ParameterPair) {
+      Wqq(s.row, s.col) += v;
+      if (s.row != s.col) Wqq(s.col, s.row) += v;
+    } else if (s.kind == Slot::ParameterColumn) {
+      C[s.mode](s.row, s.col) += v;
+    } else {
+      hessian[s.mode].emplace_back(s.row, s.col, v);
+      if (s.row != s.col) hessian[s.mode].emplace_back(s.col, s.row, v);
+    }
+  }
+
+  reduced_hessian_ = Wqq;
+  reduced_rhs_ = -lagrangian_gradient_.tail(np_);
+  for (int i = 0; i < l_; ++i) {
+    SparseMatrix B(n_ + 1, n_ + 1), W(n_ + 1, n_ + 1);
+    B.setFromTriplets(bordered[i].begin(), bordered[i].end());
+    W.setFromTriplets(hessian[i].begin(), hessian[i].end());
+    bordered[i] = {};
+    hessian[i] = {};
+    std::string why;
+    if (!factor_.factor(B, &why)) {
+      if (error)
+        *error = "full-space mode " + std::to_string(i + 1) +
+                 ": the bordered matrix [[K - lambda M, -M u], [-(M u)^T, 0]] could not be factored (" + why +
+                 "): lambda_i is a repeated eigenvalue, or u_i is M-orthogonal to the eigenvector it should approach";
+      return false;
+    }
+    mode_index_[i] = factor_.negative_pivots();
+    const Vector& s = scale[i];
+    Vector c_i(n_ + 1), g_i(n_ + 1);
+    for (int a = 0; a <= n_; ++a) {
+      c_i[a] = constraints_[global_of(a, i, n_, l_)];
+      g_i[a] = lagrangian_gradient_[global_of(a, i, n_, l_)];
+    }
+    // A_i z = f  <=>  B_i z = f / s.
+    Matrix& aS = modes_[i].a_S;
+    aS.resize(n_ + 1, np_ + 1);
+    aS.col(0) = -c_i;
+    aS.rightCols(np_) = P[i];
+    aS = s.cwiseInverse().asDiagonal() * aS;
+    factor_.solve(&aS);
+    // A_i^T w = f  <=>  B_i (s w) = f.
+    const Matrix WaS = W * aS;
+    Matrix& bT = modes_[i].b_T;
+    bT.resize(n_ + 1, np_ + 1);
+    bT.col(0) = -g_i - WaS.col(0);
+    bT.rightCols(np_) = C[i] - WaS.rightCols(np_);
+    factor_.solve(&bT);
+    bT = s.cwiseInverse().asDiagonal() * bT;
+
+    const auto a = aS.col(0);
+    const auto S = aS.rightCols(np_);
+    const Matrix CtS = C[i].transpose() * S;
+    reduced_hessian_ -= CtS + CtS.transpose() - S.transpose() * WaS.rightCols(np_);
+    reduced_rhs_ -= C[i].transpose() * a + P[i].transpose() * bT.col(0);
+  }
+  reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
+  return true;
+}
+
+void BlockKktSystem::step(const Vector& dq, Vector* dx, Vector* dy) const {
+  dx->resize(problem_.num_variables());
+  dy->resize(problem_.num_constraints());
+  for (int i = 0; i < l_; ++i) {
+    const Vector xi = modes_[i].a_S.col(0) - modes_[i].a_S.rightCols(np_) * dq;
+    const Vector yi = modes_[i].b_T.col(0) - modes_[i].b_T.rightCols(np_) * dq;
+    for (int a = 0; a <= n_; ++a) {
+      (*dx)[global_of(a, i, n_, l_)] = xi[a];
+      (*dy)[global_of(a, i, n_, l_)] = yi[a];
+    }
+  }
+  dx->tail(np_) = dq;
+}
+
+}  // namespace modalcal::detail

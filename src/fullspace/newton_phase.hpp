@@ -1,0 +1,46 @@
+#pragma once
+// Internal: what the driver (minimize_fullspace.cpp) exchanges with a Newton-phase solver of a
+// FullSpaceProblem - Ipopt (fullspace/ipopt/ipopt_run.hpp) or the block-elimination SQP
+// (fullspace/block_newton.hpp). Free of solver types.
+
+#include <functional>
+#include <string>
+
+#include "modalcal/types.hpp"
+
+namespace modalcal::detail {
+
+struct NewtonPhaseOptions {
+  int max_iterations = 200;
+  double tolerance = 1e-10;
+  double mu_init = 1e-9;        ///< Ipopt only
+  bool exact_hessian = true;    ///< Ipopt only (the block solver always uses the exact Hessian)
+  bool derivative_test = false; ///< Ipopt only
+  int print_level = 0;
+};
+
+/// What the solver reports at the end of an iteration.
+struct NewtonIteration {
+  int iteration = 0;
+  double objective = 0, primal_infeasibility = 0, dual_infeasibility = 0, complementarity = 0, mu = 0;
+};
+
+/// Called after every iteration with the current unknowns; returning false stops the solver.
+using NewtonCallback = std::function<bool(const NewtonIteration&, const double* x)>;
+
+struct NewtonPhaseResult {
+  std::string status;       ///< e.g. Ipopt's "Solve_Succeeded", the block solver's "Converged"
+  bool solved = false;      ///< converged (Ipopt: also Solved_To_Acceptable_Level)
+  bool stopped_by_callback = false;
+  bool max_iterations = false;
+  /// Block solver: its line search kept cutting the Newton step (no filter to go on with); the
+  /// driver globalizes again from the returned point.
+  bool outside_newton_region = false;
+  Vector x, y;              ///< final unknowns and constraint multipliers
+  double objective = 0;
+  int iterations = 0;
+  int hessian_evaluations = 0;  ///< = Newton (KKT) systems
+  std::string message;      ///< for failures: what went wrong and what it likely means
+};
+
+}  // namespace modalcal::detail
