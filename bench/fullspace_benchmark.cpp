@@ -118,8 +118,10 @@ long max_rss_kb() {
   return usage.ru_maxrss;
 }
 
-enum class Method { Reduced, FullSpace };
-const char* method_name(Method m) { return m == Method::Reduced ? "reduced L-BFGS" : "full space"; }
+enum class Method { Reduced, FullSpace, FullSpaceBlock };
+const char* method_name(Method m) {
+  return m == Method::Reduced ? "reduced L-BFGS" : m == Method::FullSpace ? "full (Ipopt)" : "full (block)";
+}
 
 struct Settings {
   std::string problem_path, mesh_problem_path;
@@ -211,6 +213,7 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
   } else {
     FullSpaceOptions o;
     o.print_level = s.ipopt_print_level;
+    if (method == Method::FullSpaceBlock) o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
     o.progress = [&](const KktRecord& record) {
       note(record.parameter_error);
       // For a killed run: Ipopt iterations and their time so far (guard included).
@@ -286,7 +289,7 @@ CaseResult run_in_child(const Settings& s, double refinement, Method method) {
   if (!r.ran) {
     // What it reached stays (see CaseResult); the totals are unknown.
     r.seconds = r.cpu_s = NAN;
-    if (method == Method::FullSpace) r.globalization_iterations = -1;
+    if (method != Method::Reduced) r.globalization_iterations = -1;
     if (over_memory) {
       set_status(&r, "memory limit");
     } else if (WIFSIGNALED(status)) {
@@ -317,7 +320,7 @@ void print_header() {
 }
 
 void print_row(const CaseResult& r, Method method, int dofs_hint, int modes, const CaseResult* reduced) {
-  const bool full = method == Method::FullSpace;
+  const bool full = method != Method::Reduced;
   const bool have = r.dofs > 0;  // set up, finished or not
   std::string iterations = "-";
   if (have)
@@ -389,7 +392,8 @@ const char* kUsage =
     "                              else --problem; lfu.yaml has the same mesh and no synthesis)\n"
     "  --dofs LIST                 DOF targets (default 1e4,3e4,1e5)\n"
     "  --modes LIST                measured modes kept, the first K (default 4)\n"
-    "  --methods LIST              reduced,fullspace (default both)\n"
+    "  --methods LIST              reduced,fullspace,block: reduced L-BFGS, full space with Ipopt,\n"
+    "                              full space with the block-elimination Newton solver (default all)\n"
     "  --start-factor F            start at truth x F, clamped to the bounds (default 0.7)\n"
     "  --target-error E            parameter error for the time-to-accuracy column (default 1e-8)\n"
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
@@ -405,7 +409,7 @@ int run(int argc, char** argv) {
   bool problem_given = false;
   std::vector<double> targets = {1e4, 3e4, 1e5};
   std::vector<double> mode_counts = {4};
-  std::vector<Method> methods = {Method::Reduced, Method::FullSpace};
+  std::vector<Method> methods = {Method::Reduced, Method::FullSpace, Method::FullSpaceBlock};
   std::string json_path;
   const long pages = sysconf(_SC_PHYS_PAGES), page_size = sysconf(_SC_PAGE_SIZE);
   s.max_memory_mb = pages > 0 && page_size > 0 ? 0.6 * static_cast<double>(pages) * page_size / (1024.0 * 1024.0) : 0;
@@ -429,7 +433,8 @@ int run(int argc, char** argv) {
       for (const std::string& m : split_list(next())) {
         if (m == "reduced") methods.push_back(Method::Reduced);
         else if (m == "fullspace") methods.push_back(Method::FullSpace);
-        else throw std::invalid_argument("unknown method '" + m + "' (reduced, fullspace)");
+        else if (m == "block") methods.push_back(Method::FullSpaceBlock);
+        else throw std::invalid_argument("unknown method '" + m + "' (reduced, fullspace, block)");
       }
     } else if (a == "--start-factor") s.start_factor = number();
     else if (a == "--target-error") s.target_error = number();
@@ -478,14 +483,14 @@ int run(int argc, char** argv) {
     return std::abs(std::log(dofs_at(lo) / target)) < std::abs(std::log(dofs_at(hi) / target)) ? lo : hi;
   };
 
-  std::printf("Full space (Ipopt Newton) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
+  std::printf("Full space (Ipopt, block elimination) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
   std::printf("start: truth x %g (clamped to bounds); target parameter error %.0e; per case: max %.0f s, %s\n",
               s.start_factor, s.target_error, s.max_seconds,
               s.max_memory_mb > 0 ? (format("%.0f", s.max_memory_mb) + " MB resident").c_str()
                                   : "no memory limit");
   std::printf("load average at start: %s\n", load_average().c_str());
-  std::printf("iters: L-BFGS, or Ipopt + globalization (rN: N restarts); s/it = Ipopt s / Ipopt iteration "
-              "(guard included); out s = full-space s outside Ipopt;\n"
+  std::printf("iters: L-BFGS, or Newton + globalization (rN: N restarts); s/it = Newton-phase s / Newton iteration "
+              "(guard included); out s = full-space s outside the Newton phase;\n"
               "t(target): s to parameter error <= target; t ratio = full space / reduced total s; cpu ratio = the "
               "same for cpu s, tt ratio for t(target)\n\n");
   bool header_printed = false;  // before the first row (after any note on the mesh)
@@ -521,7 +526,7 @@ int run(int argc, char** argv) {
         if (method == Method::Reduced) reduced_result = r, reduced = &reduced_result;
         rows.push_back({r, method, dofs_hint, s.modes, refinement});
         nlohmann::json j = to_json(r, method, refinement);
-        if (method == Method::FullSpace && reduced && reduced->seconds > 0 && r.seconds > 0)
+        if (method != Method::Reduced && reduced && reduced->seconds > 0 && r.seconds > 0)
           j["time_ratio_to_reduced"] = r.seconds / reduced->seconds;
         json.push_back(j);
       }
@@ -535,7 +540,6 @@ int run(int argc, char** argv) {
     for (const Row& row : rows) {
       if (row.method == Method::Reduced) reduced = &row.result;
       print_row(row.result, row.method, row.dofs_hint, row.modes, reduced);
-      if (row.method == Method::FullSpace) reduced = nullptr;
     }
   }
   std::printf("\nload average at end: %s\n", load_average().c_str());

@@ -1,9 +1,10 @@
 #pragma once
 /// \file fullspace.hpp
 /// Full-space calibration: eigenvectors, eigenvalues and parameters are all unknowns of one
-/// equality-constrained problem, solved by Ipopt's interior-point Newton method with the exact
-/// sparse constraint Jacobian and Lagrangian Hessian (the all-at-once approach SAND2015-11101
-/// names as future work; Biros & Ghattas, SISC 2005, for PDE-constrained optimization).
+/// equality-constrained problem, solved by Newton's method with the exact sparse constraint
+/// Jacobian and Lagrangian Hessian (the all-at-once approach SAND2015-11101 names as future work;
+/// Biros & Ghattas, SISC 2005, for PDE-constrained optimization): Ipopt's interior-point method,
+/// or an SQP whose KKT systems are solved by per-mode block elimination (`newton_solver`).
 ///
 /// \f[ \min_{\tilde u_i, t_i, q}\; J \quad\text{s.t.}\quad
 ///     r_i = \frac{D_i}{\bar m}\Big(\frac{K(p)}{\lambda_{m,i}} - t_i M(p)\Big)\tilde u_i = 0,\qquad
@@ -23,18 +24,20 @@
 ///      forward solve) until the projected gradient has fallen by `globalization_reduction`,
 ///      first on the eigenvalue terms alone (`eigenvalues_first`), then on the whole objective,
 ///      both with the logarithmic eigenvalue misfit (`globalization_misfit`);
-///   2. starts Ipopt from the forward solution there, signs aligned with the measured shapes,
+///   2. starts the Newton phase from the forward solution there, signs aligned with the measured shapes,
 ///      multipliers from the adjoint (\f$y_i = w_i\f$, \f$z_i = 2\eta_i\f$, scaled), warm started
 ///      with a small barrier parameter;
 ///   3. guards every iteration: a forward solve at the current p, paired as the reduced
 ///      objective pairs, must have M-weighted MAC >= `guard_mac` with each \f$u_i\f$; if not,
-///      Ipopt is stopped, the Newton direction in q is kept but the modes are not: a backtracking
+///      Newton is stopped, the Newton direction in q is kept but the modes are not: a backtracking
 ///      search on the reduced objective along the segment from the last guarded point to the
 ///      current p picks the restart point (reduced L-BFGS if no point on it decreases J), and
-///      Ipopt restarts from the forward solution there. J decreases from restart to restart;
+///      Newton restarts from the forward solution there. J decreases from restart to restart
+///      (the block solver also hands its point back to the globalization when its line search
+///      keeps cutting the Newton steps);
 ///   4. verifies the end point against a forward solve (same modes, MAC >= `verify_mac`,
 ///      eigenvalues within `verify_eigenvalue_tolerance`) and reports a run that fails this as not
-///      converged, whatever Ipopt said.
+///      converged, whatever the Newton solver said.
 ///
 /// \code
 /// modalcal::Problem problem = modalcal::load_problem("problems/lfu/synthetic.yaml");
@@ -56,10 +59,11 @@ namespace modalcal {
 struct FullSpaceOptions {
   /// Newton-phase (Ipopt or block SQP) iterations, over all restarts. Range: >= 1.
   int max_iterations = 200;
-  /// Ipopt `tol`: the scaled KKT error (primal and dual infeasibility, complementarity) at
-  /// which it stops. Range: (0, 1).
+  /// KKT error (primal and dual infeasibility, complementarity) at which the Newton phase stops:
+  /// Ipopt's `tol` and its unscaled constr_viol/dual_inf/compl_inf tolerances; for the block
+  /// solver max(|c|_inf, |projected grad L|_inf). Range: (0, 1).
   double tolerance = 1e-10;
-  /// Barrier parameter Ipopt starts from (warm start). Range: > 0.
+  /// Barrier parameter Ipopt starts from (warm start; Ipopt only). Range: > 0.
   double mu_init = 1e-9;
   /// Who solves the Newton phase's KKT systems.
   ///  - `Ipopt`: Ipopt's interior-point Newton method, MUMPS on the whole KKT matrix of order
@@ -94,7 +98,7 @@ struct FullSpaceOptions {
   /// the portal frame's 21 starts, lost without it, and the LFU problem's own start). No effect
   /// without weighted shape terms or without weighted eigenvalue terms.
   bool eigenvalues_first = true;
-  /// Forward solve and MAC check of every u_i at every Ipopt iteration.
+  /// Forward solve and MAC check of every u_i at every Newton iteration.
   bool mode_guard = true;
   /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).
   double guard_mac = 0.8;
@@ -111,12 +115,13 @@ struct FullSpaceOptions {
   bool ipopt_derivative_test = false;
   /// Ipopt print level (0 silent, 5 its usual table). Range: [0, 12].
   int print_level = 0;
-  /// Called after every Ipopt iteration (progress display).
+  /// Called after every Newton iteration (progress display).
   std::function<void(const struct KktRecord&)> progress;
   bool IsValid(std::string* error) const;
 };
 
-/// One Ipopt iteration.
+/// One Newton iteration (Ipopt's, or the block solver's: there complementarity and mu are 0, the
+/// bounds being handled by an active set).
 struct KktRecord {
   int iteration = 0;             ///< cumulative over restarts
   double objective = 0;
@@ -140,10 +145,10 @@ struct ModeCheck {
 };
 
 enum class FullSpaceStatus {
-  Converged,           ///< Ipopt converged and the mode check passed
-  WrongModes,          ///< Ipopt converged, but not on the paired modes
+  Converged,           ///< the Newton phase converged and the mode check passed
+  WrongModes,          ///< the Newton phase converged, but not on the paired modes
   MaxIterations,
-  Failed,              ///< Ipopt failed (restoration, too few degrees of freedom, ...)
+  Failed,              ///< the Newton solver failed (Ipopt: restoration, ...; block: singular mode block, ...)
   ForwardSolveFailed,  ///< the start could not be evaluated
 };
 std::string to_string(FullSpaceStatus status);
@@ -160,7 +165,7 @@ struct FullSpaceSummary {
   std::string newton_status;
   Vector initial, final;         ///< physical parameters
   double initial_objective = NAN, final_objective = NAN;
-  int iterations = 0;            ///< Ipopt iterations over all attempts
+  int iterations = 0;            ///< Newton iterations over all attempts
   int globalization_iterations = 0;
   int restarts = 0;
   int forward_solves = 0;        ///< reduced phase, starts, guard and final check

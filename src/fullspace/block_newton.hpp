@@ -6,13 +6,15 @@
 // Iteration k at (x, y):
 //   1. build the KKT system by blocks; KKT error max(|c|_inf, |projected grad L|_inf) (bounds on
 //      q only: a component pushing against its bound does not count); stop below `tolerance`;
-//   2. inertia: H + delta I positive definite (Cholesky, delta from 0, then 1e-8 |H| up by 10x),
-//      which is the whole inertia test (block_kkt.hpp);
-//   3. dq from the bound-constrained reduced QP (box_qp.hpp), then dx, dy;
-//   4. step length by backtracking on the l1 merit f + nu |c|_1 (Armijo); the full step is also
-//      taken when it halves the constraint violation relative to the KKT error without raising f
-//      by more than that error (the Maratos effect would otherwise reject the full steps that
-//      converge quadratically); y <- y + alpha dy.
+//   2. inertia: where the reduced Hessian H has an eigenvalue below 1e-8 of its largest, shift it
+//      so that its smallest is 1e-4 of the largest - H is the whole inertia test (block_kkt.hpp);
+//   3. dq from the QP in q within the bounds and a trust box (box_qp.hpp), then dx, dy;
+//   4. step length by Ipopt's filter line search on (|c|_1, f) (Waechter & Biegler 2006), which
+//      lets the iterate leave the constraints behind while f falls - a monotone l1 merit cut the
+//      steps along curved valleys of J to a crawl (README); y <- y + alpha dy; the trust box
+//      follows the accepted step;
+//   5. three cut steps in a row (line search or trust box): the iterate is outside Newton's
+//      region, and the driver globalizes again (NewtonPhaseResult::outside_newton_region).
 // Parameters stay within their bounds at every iterate (the QP's bounds), as with Ipopt.
 
 #include "fullspace/fullspace_problem.hpp"
