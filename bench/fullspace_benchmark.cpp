@@ -1,6 +1,6 @@
-// Full-space calibration (minimize_fullspace: Ipopt Newton on modes, eigenvalues and parameters
-// at once) against reduced-space projected L-BFGS (minimize_reduced), side by side in one run, on
-// the LFU synthetic problem at several mesh sizes.
+// Full-space calibration (minimize_fullspace: Newton on modes, eigenvalues and parameters at
+// once, with Ipopt or with the block-elimination solver) against reduced-space projected L-BFGS
+// (minimize_reduced), side by side in one run, on the LFU synthetic problem at several mesh sizes.
 //
 // Problem: problems/lfu/synthetic.yaml (five parameters, log scaling, bounds, noise-free modes
 // with shapes synthesized from the truth on the same mesh) with only the first --modes measured
@@ -46,7 +46,10 @@
 // "print_timing_statistics yes" adds the per-component breakdown (LinearSystemFactorization,
 // symbolic factorization, back solves, function evaluations).
 //
-// Measured (2 shared cores, load average 4-10, so wall times are ~1.7x the CPU times): at
+// Measured in session 6 (README, Benchmarks): the block solver at 1.39x reduced L-BFGS at 13,764
+// DOFs, 1.35x at 31,143 and 2.37x at 133,794 (1.62x to parameter error 1e-8), 11 GB there; Ipopt
+// 5.9x at 13,764. Session 4, Ipopt only (2 shared cores, load
+// average 4-10, so wall times are ~1.7x the CPU times): at
 // 13,764 DOFs and 4 modes (55,065 unknowns, 3.8M Jacobian and 2.0M Hessian nonzeros) full space
 // converged in 4 Ipopt + 7 globalization iterations at ~40 s per Ipopt iteration, 7-9x the
 // reduced L-BFGS time to the same 2.5e-11 parameter error. Of Ipopt's 98 CPU s, ~92 were the

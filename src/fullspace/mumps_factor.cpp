@@ -16,7 +16,7 @@ MUMPS_INT infog(const DMUMPS_STRUC_C& id, int k) { return id.infog[k - 1]; }
 
 struct MumpsSymmetricFactor::State {
   DMUMPS_STRUC_C id{};
-  bool initialized = false, factored = false;
+  bool initialized = false, analyzed = false, factored = false;
   std::vector<MUMPS_INT> rows, cols;
   std::vector<double> values;
 };
@@ -46,16 +46,20 @@ MumpsSymmetricFactor::~MumpsSymmetricFactor() {
 bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error) {
   State& s = *state_;
   DMUMPS_STRUC_C& id = s.id;
-  s.rows.clear();
-  s.cols.clear();
+  std::vector<MUMPS_INT> rows, cols;
   s.values.clear();
   for (int c = 0; c < lower.outerSize(); ++c)
     for (SparseMatrix::InnerIterator it(lower, c); it; ++it)
       if (it.row() >= c) {
-        s.rows.push_back(static_cast<MUMPS_INT>(it.row() + 1));
-        s.cols.push_back(static_cast<MUMPS_INT>(c + 1));
+        rows.push_back(static_cast<MUMPS_INT>(it.row() + 1));
+        cols.push_back(static_cast<MUMPS_INT>(c + 1));
         s.values.push_back(it.value());
       }
+  // The ordering and symbolic analysis depend on the pattern only: the modes' bordered blocks
+  // share one, and so do the Newton iterations, so it is analysed once.
+  const bool same_pattern = s.analyzed && id.n == static_cast<MUMPS_INT>(lower.rows()) && rows == s.rows && cols == s.cols;
+  s.rows = std::move(rows);
+  s.cols = std::move(cols);
   id.n = static_cast<MUMPS_INT>(lower.rows());
   id.nnz = static_cast<MUMPS_INT8>(s.values.size());
   id.irn = s.rows.data();
@@ -64,11 +68,12 @@ bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error)
   s.factored = false;
   // Working space: MUMPS estimates it in the analysis; delayed pivots can exceed the estimate
   // (INFOG(1) = -9 or -8), and the retry doubles the relaxation.
-  icntl(id, 14) = 30;
+  if (!same_pattern) icntl(id, 14) = 30;
   for (int attempt = 0; attempt < 4; ++attempt) {
-    id.job = 4;  // analysis and factorization
+    id.job = same_pattern && attempt == 0 ? 2 : 4;  // factorization, or analysis and factorization
     dmumps_c(&id);
     const int code = infog(id, 1);
+    s.analyzed = code >= 0 || id.job == 2;
     if (code >= 0) {
       s.factored = true;
       return true;
