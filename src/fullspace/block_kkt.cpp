@@ -27,12 +27,14 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
       *local = n_;
     }
   };
-  const SparseLayout& jac = problem.jacobian_layout();
-  jac_rows_.resize(jac.nonzeros());
-  jac_cols_.resize(jac.nonzeros());
-  jac.structure(jac_rows_.data(), jac_cols_.data());
-  jac_slots_.resize(jac.nonzeros());
-  for (int k = 0; k < jac.nonzeros(); ++k) {
+  auto read = [](const SparseLayout& layout, std::vector<int>* rows, std::vector<int>* cols, std::vector<Slot>* slots) {
+    rows->resize(layout.nonzeros());
+    cols->resize(layout.nonzeros());
+    layout.structure(rows->data(), cols->data());
+    slots->resize(layout.nonzeros());
+  };
+  read(problem.jacobian_layout(), &jac_rows_, &jac_cols_, &jac_slots_);
+  for (size_t k = 0; k < jac_slots_.size(); ++k) {
     Slot& s = jac_slots_[k];
     int row_mode, col_mode;
     split(jac_rows_[k], &row_mode, &s.row);
@@ -43,12 +45,8 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
     else if (col_mode != row_mode)
       throw std::logic_error("BlockKktSystem: the constraint Jacobian couples two modes");
   }
-  const SparseLayout& hes = problem.hessian_layout();
-  hes_rows_.resize(hes.nonzeros());
-  hes_cols_.resize(hes.nonzeros());
-  hes.structure(hes_rows_.data(), hes_cols_.data());
-  hes_slots_.resize(hes.nonzeros());
-  for (int k = 0; k < hes.nonzeros(); ++k) {
+  read(problem.hessian_layout(), &hes_rows_, &hes_cols_, &hes_slots_);
+  for (size_t k = 0; k < hes_slots_.size(); ++k) {
     Slot& s = hes_slots_[k];
     int row_mode, col_mode, row, col;
     split(hes_rows_[k], &row_mode, &row);
@@ -64,8 +62,8 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
       throw std::logic_error("BlockKktSystem: the Lagrangian Hessian couples two modes");
     }
   }
-  jac_values_.resize(jac.nonzeros());
-  hes_values_.resize(hes.nonzeros());
+  jac_values_.resize(jac_slots_.size());
+  hes_values_.resize(hes_slots_.size());
   modes_.resize(l_);
   mode_index_.assign(l_, 0);
 }

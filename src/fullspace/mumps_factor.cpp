@@ -57,7 +57,8 @@ bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error)
       }
   // The ordering and symbolic analysis depend on the pattern only: the modes' bordered blocks
   // share one, and so do the Newton iterations, so it is analysed once.
-  const bool same_pattern = s.analyzed && id.n == static_cast<MUMPS_INT>(lower.rows()) && rows == s.rows && cols == s.cols;
+  const bool same_pattern =
+      s.analyzed && id.n == static_cast<MUMPS_INT>(lower.rows()) && rows == s.rows && cols == s.cols;
   s.rows = std::move(rows);
   s.cols = std::move(cols);
   id.n = static_cast<MUMPS_INT>(lower.rows());
@@ -96,16 +97,6 @@ bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error)
 }
 
 int MumpsSymmetricFactor::negative_pivots() const { return infog(state_->id, 12); }
-
-double MumpsSymmetricFactor::factor_bytes() const {
-  // RINFOG(?) is not per-factor memory; INFOG(9) real and INFOG(10) integer words (negative:
-  // millions), as allocated for the factors.
-  auto words = [&](int k) {
-    const double w = infog(state_->id, k);
-    return w < 0 ? -w * 1e6 : w;
-  };
-  return words(9) * sizeof(double) + words(10) * sizeof(MUMPS_INT);
-}
 
 void MumpsSymmetricFactor::solve(Matrix* rhs) {
   State& s = *state_;

@@ -26,8 +26,6 @@ class MumpsSymmetricFactor {
   int negative_pivots() const;
   /// Solves A X = B for every column of B, in place.
   void solve(Matrix* rhs);
-  /// Bytes MUMPS reported for its factors (real plus integer), for memory accounting.
-  double factor_bytes() const;
 
  private:
   struct State;
