@@ -223,6 +223,11 @@ TEST(FullSpace, OptionsAreValidatedNamingTheField) {
   options.guard_mac = 1.5;
   EXPECT_FALSE(options.IsValid(&error));
   EXPECT_NE(error.find("guard_mac"), std::string::npos) << error;
+  FullSpaceOptions limited_block;
+  limited_block.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
+  limited_block.hessian = FullSpaceOptions::Hessian::LimitedMemory;
+  EXPECT_FALSE(limited_block.IsValid(&error));
+  EXPECT_NE(error.find("newton_solver"), std::string::npos) << error;
   const Problem problem = Identifiable();
   Objective objective(problem);
   EXPECT_THROW(minimize_fullspace(objective, problem.initial_values(), options), std::invalid_argument);

@@ -43,6 +43,9 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
   if (!(verify_mac > 0 && verify_mac < 1)) return bad("verify_mac = " + std::to_string(verify_mac) + ": must be in (0, 1)");
   if (!(verify_eigenvalue_tolerance > 0 && verify_eigenvalue_tolerance < 1))
     return bad("verify_eigenvalue_tolerance = " + std::to_string(verify_eigenvalue_tolerance) + ": must be in (0, 1)");
+  if (hessian == Hessian::LimitedMemory && newton_solver != NewtonSolver::Ipopt)
+    return bad("hessian = LimitedMemory with newton_solver = BlockElimination: the L-BFGS Hessian is Ipopt's; the "
+               "block solver needs the exact one");
   if (print_level < 0 || print_level > 12)
     return bad("print_level = " + std::to_string(print_level) + ": must be in [0, 12]");
   return true;
