@@ -72,8 +72,9 @@ struct FullSpaceOptions {
   ///  - `BlockElimination`: an SQP iteration on the same problem and derivatives whose KKT
   ///    systems are solved per mode: one sparse LDL^T of the bordered
   ///    \f$[[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ (order n + 1) per mode and an m x m
-  ///    Schur complement on the parameters, whose Cholesky is the inertia test. Bounds on p by an
-  ///    active-set QP, steps by an l1-merit line search (src/fullspace/block_newton.hpp).
+  ///    Schur complement on the parameters (the reduced Hessian, whose eigenvalues are the inertia
+  ///    test). Bounds on p by an active-set QP in a trust box, steps by Ipopt's filter line search
+  ///    (src/fullspace/block_newton.hpp).
   enum class NewtonSolver { Ipopt, BlockElimination };
   NewtonSolver newton_solver = NewtonSolver::Ipopt;
   enum class Hessian { Exact, LimitedMemory };
@@ -160,7 +161,7 @@ struct FullSpaceSummary {
   std::string message;
   std::string newton_solver;     ///< to_string(FullSpaceOptions::newton_solver)
   /// Status of the Newton phase's last attempt: Ipopt's return status (e.g. Solve_Succeeded), or
-  /// the block solver's (Converged, Maximum_Iterations_Exceeded, Line_Search_Failed,
+  /// the block solver's (Converged, Maximum_Iterations_Exceeded, Outside_Newton_Region,
   /// Singular_Mode_Block, User_Requested_Stop).
   std::string newton_status;
   Vector initial, final;         ///< physical parameters

@@ -100,11 +100,11 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     if (args.no_eigenvalues_first) options.eigenvalues_first = false;
     options.newton_solver = args.newton_solver == "block" ? FullSpaceOptions::NewtonSolver::BlockElimination
                                                           : FullSpaceOptions::NewtonSolver::Ipopt;
-    if (options.newton_solver != FullSpaceOptions::NewtonSolver::Ipopt && args.limited_memory)
-      throw InputError("--limited-memory: Ipopt's L-BFGS Hessian needs --newton-solver ipopt");
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
+    std::string invalid;  // combinations of flags the options refuse (e.g. --limited-memory with block)
+    if (!options.IsValid(&invalid)) throw InputError("the full-space flags give invalid options: " + invalid);
     if (!args.quiet) options.progress = print_kkt;
     std::fflush(stdout);
     const FullSpaceSummary summary = minimize_fullspace(objective, p0, options);

@@ -4,29 +4,8 @@
 
 namespace modalcal::detail {
 
-namespace {
-
-// Global index of local entry `a` (0..n) of mode i's unknowns (u~_i, t_i) or rows (r_i, n_i):
-// both are laid out as l blocks of n, then l scalars.
-int global_of(int a, int i, int n, int l) { return a < n ? i * n + a : l * n + i; }
-
-}  // namespace
-
 BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
     : problem_(problem), n_(problem.num_dofs()), l_(problem.num_modes()), np_(problem.num_parameters()) {
-  const int q0 = problem.parameter_offset();
-  auto split = [&](int index, int* mode, int* local) {  // unknown or row -> (mode, local); mode -1: q_local
-    if (index >= q0) {
-      *mode = -1;
-      *local = index - q0;
-    } else if (index < l_ * n_) {
-      *mode = index / n_;
-      *local = index % n_;
-    } else {
-      *mode = index - l_ * n_;
-      *local = n_;
-    }
-  };
   auto read = [](const SparseLayout& layout, std::vector<int>* rows, std::vector<int>* cols, std::vector<Slot>* slots) {
     rows->resize(layout.nonzeros());
     cols->resize(layout.nonzeros());
@@ -37,8 +16,8 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
   for (size_t k = 0; k < jac_slots_.size(); ++k) {
     Slot& s = jac_slots_[k];
     int row_mode, col_mode;
-    split(jac_rows_[k], &row_mode, &s.row);
-    split(jac_cols_[k], &col_mode, &s.col);
+    problem.locate(jac_rows_[k], &row_mode, &s.row);
+    problem.locate(jac_cols_[k], &col_mode, &s.col);
     s.mode = row_mode;
     if (col_mode == -1)
       s.kind = Slot::ParameterColumn;
@@ -49,8 +28,8 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
   for (size_t k = 0; k < hes_slots_.size(); ++k) {
     Slot& s = hes_slots_[k];
     int row_mode, col_mode, row, col;
-    split(hes_rows_[k], &row_mode, &row);
-    split(hes_cols_[k], &col_mode, &col);
+    problem.locate(hes_rows_[k], &row_mode, &row);
+    problem.locate(hes_cols_[k], &col_mode, &col);
     if (row_mode == -1 && col_mode == -1) {
       s = {-1, row, col, Slot::ParameterPair};
     } else if (row_mode == -1 || col_mode == -1) {  // C_i(local unknown, parameter)
@@ -62,6 +41,13 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
       throw std::logic_error("BlockKktSystem: the Lagrangian Hessian couples two modes");
     }
   }
+  // Each mode's entries, so that build() holds one mode's blocks at a time.
+  jac_entries_.resize(l_);
+  hes_entries_.resize(l_);
+  for (size_t k = 0; k < jac_slots_.size(); ++k) jac_entries_[jac_slots_[k].mode].push_back(static_cast<int>(k));
+  for (size_t k = 0; k < hes_slots_.size(); ++k)
+    (hes_slots_[k].kind == Slot::ParameterPair ? parameter_pairs_ : hes_entries_[hes_slots_[k].mode])
+        .push_back(static_cast<int>(k));
   jac_values_.resize(jac_slots_.size());
   hes_values_.resize(hes_slots_.size());
   modes_.resize(l_);
@@ -79,41 +65,41 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
   lagrangian_gradient_ = objective_gradient_;
   for (size_t k = 0; k < jac_values_.size(); ++k) lagrangian_gradient_[jac_cols_[k]] += jac_values_[k] * y[jac_rows_[k]];
 
-  // Gather every mode's blocks in one pass over the entries.
-  std::vector<std::vector<Eigen::Triplet<double, int>>> bordered(l_), hessian(l_);
-  std::vector<Matrix> P(l_, Matrix::Zero(n_ + 1, np_)), C(l_, Matrix::Zero(n_ + 1, np_));
-  std::vector<Vector> scale(l_);
-  for (int i = 0; i < l_; ++i) scale[i] = problem_.mode_row_scale(i);
-  for (size_t k = 0; k < jac_values_.size(); ++k) {
-    const Slot& s = jac_slots_[k];
-    if (s.kind == Slot::ParameterColumn)
-      P[s.mode](s.row, s.col) = jac_values_[k];
-    else if (s.row >= s.col)  // B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle suffices
-      bordered[s.mode].emplace_back(s.row, s.col, jac_values_[k] / scale[s.mode][s.row]);
-  }
-  Matrix Wqq = Matrix::Zero(np_, np_);
-  for (size_t k = 0; k < hes_values_.size(); ++k) {
+  reduced_hessian_ = Matrix::Zero(np_, np_);  // W_qq, then the Schur complement
+  for (int k : parameter_pairs_) {
     const Slot& s = hes_slots_[k];
-    const double v = hes_values_[k];
-    if (s.kind == Slot::ParameterPair) {
-      Wqq(s.row, s.col) += v;
-      if (s.row != s.col) Wqq(s.col, s.row) += v;
-    } else if (s.kind == Slot::ParameterColumn) {
-      C[s.mode](s.row, s.col) += v;
-    } else {
-      hessian[s.mode].emplace_back(s.row, s.col, v);
-      if (s.row != s.col) hessian[s.mode].emplace_back(s.col, s.row, v);
-    }
+    reduced_hessian_(s.row, s.col) += hes_values_[k];
+    if (s.row != s.col) reduced_hessian_(s.col, s.row) += hes_values_[k];
   }
-
-  reduced_hessian_ = Wqq;
   reduced_rhs_ = -lagrangian_gradient_.tail(np_);
   for (int i = 0; i < l_; ++i) {
+    // Mode i's blocks: B_i = diag(s_i)^{-1} A_i (symmetric: its lower triangle suffices), P_i,
+    // W_i (both triangles) and C_i.
+    const Vector s = problem_.mode_row_scale(i);
+    std::vector<Eigen::Triplet<double, int>> entries;
+    Matrix P = Matrix::Zero(n_ + 1, np_), C = Matrix::Zero(n_ + 1, np_);
+    for (int k : jac_entries_[i]) {
+      const Slot& slot = jac_slots_[k];
+      if (slot.kind == Slot::ParameterColumn)
+        P(slot.row, slot.col) = jac_values_[k];
+      else if (slot.row >= slot.col)
+        entries.emplace_back(slot.row, slot.col, jac_values_[k] / s[slot.row]);
+    }
     SparseMatrix B(n_ + 1, n_ + 1), W(n_ + 1, n_ + 1);
-    B.setFromTriplets(bordered[i].begin(), bordered[i].end());
-    W.setFromTriplets(hessian[i].begin(), hessian[i].end());
-    bordered[i] = {};
-    hessian[i] = {};
+    B.setFromTriplets(entries.begin(), entries.end());
+    entries.clear();
+    for (int k : hes_entries_[i]) {
+      const Slot& slot = hes_slots_[k];
+      const double v = hes_values_[k];
+      if (slot.kind == Slot::ParameterColumn) {
+        C(slot.row, slot.col) += v;
+      } else {
+        entries.emplace_back(slot.row, slot.col, v);
+        if (slot.row != slot.col) entries.emplace_back(slot.col, slot.row, v);
+      }
+    }
+    W.setFromTriplets(entries.begin(), entries.end());
+    entries = {};
     std::string why;
     if (!factor_.factor(B, &why)) {
       if (error)
@@ -123,17 +109,16 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
       return false;
     }
     mode_index_[i] = factor_.negative_pivots();
-    const Vector& s = scale[i];
     Vector c_i(n_ + 1), g_i(n_ + 1);
     for (int a = 0; a <= n_; ++a) {
-      c_i[a] = constraints_[global_of(a, i, n_, l_)];
-      g_i[a] = lagrangian_gradient_[global_of(a, i, n_, l_)];
+      c_i[a] = constraints_[problem_.mode_entry(i, a)];
+      g_i[a] = lagrangian_gradient_[problem_.mode_entry(i, a)];
     }
     // A_i z = f  <=>  B_i z = f / s.
     Matrix& aS = modes_[i].a_S;
     aS.resize(n_ + 1, np_ + 1);
     aS.col(0) = -c_i;
-    aS.rightCols(np_) = P[i];
+    aS.rightCols(np_) = P;
     aS = s.cwiseInverse().asDiagonal() * aS;
     factor_.solve(&aS);
     // A_i^T w = f  <=>  B_i (s w) = f.
@@ -141,15 +126,15 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
     Matrix& bT = modes_[i].b_T;
     bT.resize(n_ + 1, np_ + 1);
     bT.col(0) = -g_i - WaS.col(0);
-    bT.rightCols(np_) = C[i] - WaS.rightCols(np_);
+    bT.rightCols(np_) = C - WaS.rightCols(np_);
     factor_.solve(&bT);
     bT = s.cwiseInverse().asDiagonal() * bT;
 
     const auto a = aS.col(0);
     const auto S = aS.rightCols(np_);
-    const Matrix CtS = C[i].transpose() * S;
+    const Matrix CtS = C.transpose() * S;
     reduced_hessian_ -= CtS + CtS.transpose() - S.transpose() * WaS.rightCols(np_);
-    reduced_rhs_ -= C[i].transpose() * a + P[i].transpose() * bT.col(0);
+    reduced_rhs_ -= C.transpose() * a + P.transpose() * bT.col(0);
   }
   reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
   return true;
@@ -162,8 +147,8 @@ void BlockKktSystem::step(const Vector& dq, Vector* dx, Vector* dy) const {
     const Vector xi = modes_[i].a_S.col(0) - modes_[i].a_S.rightCols(np_) * dq;
     const Vector yi = modes_[i].b_T.col(0) - modes_[i].b_T.rightCols(np_) * dq;
     for (int a = 0; a <= n_; ++a) {
-      (*dx)[global_of(a, i, n_, l_)] = xi[a];
-      (*dy)[global_of(a, i, n_, l_)] = yi[a];
+      (*dx)[problem_.mode_entry(i, a)] = xi[a];
+      (*dy)[problem_.mode_entry(i, a)] = yi[a];
     }
   }
   dx->tail(np_) = dq;

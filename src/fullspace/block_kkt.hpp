@@ -15,7 +15,7 @@
 //   H = W_qq - sum_i (C_i^T S_i + S_i^T C_i - S_i^T W_i S_i),  h = -g_q - sum_i (C_i^T a_i + P_i^T b_i).
 // H = Z^T W Z on the null space Z = [-S; I] of the constraint Jacobian: the KKT matrix has the
 // inertia an interior-point or SQP method wants exactly when H is positive definite, so the
-// inertia test is an m x m Cholesky. Cost per mode: one sparse symmetric indefinite
+// inertia test is on an m x m matrix. Cost per mode: one sparse symmetric indefinite
 // factorization of the bordered B_i (A_i = diag(s_i) B_i) and 2(m + 1) solves, against Ipopt's
 // factorization of the whole 2 l (n + 1) + m KKT matrix (README: where the time goes).
 
@@ -64,6 +64,8 @@ class BlockKktSystem {
   };
   std::vector<int> jac_rows_, jac_cols_, hes_rows_, hes_cols_;
   std::vector<Slot> jac_slots_, hes_slots_;
+  std::vector<std::vector<int>> jac_entries_, hes_entries_;  // per mode: its entries' positions
+  std::vector<int> parameter_pairs_;                          // Hessian q-q entries
   std::vector<double> jac_values_, hes_values_;
   MumpsSymmetricFactor factor_;
   std::vector<ModeData> modes_;

@@ -71,10 +71,11 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     ++result.hessian_evaluations;
     const double primal = kkt.constraints().lpNorm<Eigen::Infinity>();
     const double dual = dual_infeasibility(kkt.lagrangian_gradient(), x.tail(np), bounds, q0);
+    const double f0 = problem.objective(x.data());
     result.iterations = k;
     NewtonIteration info;
     info.iteration = k;
-    info.objective = problem.objective(x.data());
+    info.objective = f0;
     info.primal_infeasibility = primal;
     info.dual_infeasibility = dual;
     if (callback && !callback(info, x.data())) {
@@ -113,7 +114,6 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
       theta_max = 1e4 * std::max(1.0, theta);
       theta_min = 1e-4 * std::max(1.0, theta);
     }
-    const double f0 = problem.objective(x.data());
     const double slope = kkt.objective_gradient().dot(dx);
     const double kkt0 = std::max(primal, dual);
     double alpha = 1;

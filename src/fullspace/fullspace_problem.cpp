@@ -186,6 +186,19 @@ void FullSpaceProblem::unpack_multipliers(const double* y, Matrix* w, Vector* et
   }
 }
 
+void FullSpaceProblem::locate(int index, int* mode, int* local) const {
+  if (index >= parameter_offset()) {
+    *mode = -1;
+    *local = index - parameter_offset();
+  } else if (index < num_modes() * n_) {
+    *mode = index / n_;
+    *local = index % n_;
+  } else {
+    *mode = index - num_modes() * n_;
+    *local = n_;
+  }
+}
+
 Vector FullSpaceProblem::mode_row_scale(int i) const {
   Vector s(n_ + 1);
   s.head(n_) = row_scale_[i] / mass_scale_;  // r_i = D (K / lambda_ref - t M) u~ / m_bar

@@ -49,11 +49,13 @@ class FullSpaceProblem {
   /// Lower triangle of sigma * Hessian(objective) + sum_k y_k Hessian(c_k).
   void hessian_values(const double* x, double sigma, const double* y, double* values);
 
-  /// Index of u~_i's first entry, of t_i and of q_0 in x; of r_i's first row and of n_i in c.
-  int mode_offset(int i) const { return i * n_; }
-  int eigenvalue_index(int i) const { return num_modes() * n_ + i; }
+  /// Unknowns and constraint rows share one layout: l blocks of n (u~_i; r_i), then l scalars
+  /// (t_i; n_i), then (unknowns only) q. mode_entry(i, a) is the index of mode i's local entry a
+  /// in 0..n (a = n: its scalar); locate() is the inverse, with mode -1 and the parameter's index
+  /// for q.
+  int mode_entry(int i, int a) const { return a < n_ ? i * n_ + a : num_modes() * n_ + i; }
+  void locate(int index, int* mode, int* local) const;
   int parameter_offset() const { return num_modes() * (n_ + 1); }
-  int normalization_row(int i) const { return num_modes() * n_ + i; }
   /// s_i with: the Jacobian block of mode i (rows r_i, n_i; columns u~_i, t_i) equals diag(s_i) B_i,
   /// B_i = [[K / lambda_ref,i - t_i M, -M u~_i], [-(M u~_i)^T, 0]] symmetric (the bordered
   /// eigen-matrix), so that one symmetric factorization serves A_i and A_i^T.

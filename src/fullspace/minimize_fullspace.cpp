@@ -201,8 +201,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
       record.dual_infeasibility = info.dual_infeasibility;
       record.complementarity = info.complementarity;
       record.mu = info.mu;
-      record.p = scaling.to_physical(Eigen::Map<const Vector>(x + fp.num_variables() - fp.num_parameters(),
-                                                              fp.num_parameters()));
+      record.p = fp.parameters(x);
       record.parameter_error = parameter_error(truth, record.p);
       if (options.mode_guard) {
         const Clock::time_point guard_start = Clock::now();
