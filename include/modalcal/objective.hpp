@@ -106,6 +106,16 @@ struct ObjectiveOptions {
   ///   \f$\lambda\f$. The full-space globalization can use it (FullSpaceOptions::globalization_misfit).
   enum class EigenvalueMisfit { Relative, Logarithmic };
   EigenvalueMisfit eigenvalue_misfit = EigenvalueMisfit::Relative;
+  /// Which MAC-paired model mode each measured eigenvalue is compared with:
+  /// - `false`: its own pair's (the calibration objective);
+  /// - `true`: the shapes choose the set of model modes, and within that set the k-th lowest
+  ///   model eigenvalue is compared with the k-th lowest measured frequency. Where two paired
+  ///   modes cross as p changes, their MAC pairs swap and the paired eigenvalue terms jump, which
+  ///   leaves a barrier that a descent method cannot cross (on LFU, a minimum with J = 0.40 and
+  ///   modes 3 and 4 swapped); compared in order, the eigenvalue terms stay continuous. Only for an
+  ///   objective without shape terms (the full-space globalization's eigenvalues-first stage):
+  ///   the Objective refuses it otherwise.
+  bool eigenvalues_in_frequency_order = false;
   bool IsValid(std::string* error) const;
 };
 

@@ -84,6 +84,12 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
   if (!options_.IsValid(&error)) throw std::invalid_argument("ObjectiveOptions: " + error);
   if (problem.measured.empty())
     throw std::invalid_argument(problem.path + ": no measured modes to calibrate against");
+  if (options_.eigenvalues_in_frequency_order)
+    for (size_t i = 0; i < problem.measured.size(); ++i)
+      if (problem.measured[i].has_shape_term())
+        throw std::invalid_argument("ObjectiveOptions::eigenvalues_in_frequency_order needs an objective without shape "
+                                    "terms, but " + describe_measured(problem.measured[i], static_cast<int>(i)) +
+                                    " has a weighted shape");
   system_ = std::make_unique<ParametricSystem>(problem.model, problem.parameter_targets());
   workspace_ = std::make_unique<Workspace>();
   workspace_->sensors = detail::sensor_matrix(problem, system_->dof_map());
@@ -241,6 +247,17 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
       e.message = describe_measured(problem_.measured[i], i) + ": no model mode left to pair with";
       return e;
     }
+  if (options_.eigenvalues_in_frequency_order && mac_rows.size() > 1) {
+    // The shapes chose the set; frequency order assigns it (see the option's comment).
+    std::vector<int> set;
+    for (int i : mac_rows) set.push_back(model_of[i]);
+    std::sort(set.begin(), set.end(), [&](int a, int b) { return lambda[a] < lambda[b]; });
+    std::vector<int> rows = mac_rows;
+    std::stable_sort(rows.begin(), rows.end(), [&](int a, int b) {
+      return problem_.measured[a].frequency_hz < problem_.measured[b].frequency_hz;
+    });
+    for (size_t a = 0; a < rows.size(); ++a) model_of[rows[a]] = set[a];
+  }
 
   // --- Residuals and value.
   const int ns = static_cast<int>(problem_.sensors.size());
