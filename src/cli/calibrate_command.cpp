@@ -42,6 +42,7 @@ struct CalibrateArgs {
   std::string globalization_misfit =
       FullSpaceOptions().globalization_misfit == ObjectiveOptions::EigenvalueMisfit::Relative ? "relative" : "log";
   bool no_eigenvalues_first = false;
+  bool no_crossing_escape = false;
   std::string newton_solver = to_string(FullSpaceOptions().newton_solver);
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
@@ -98,6 +99,7 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
                                        ? ObjectiveOptions::EigenvalueMisfit::Relative
                                        : ObjectiveOptions::EigenvalueMisfit::Logarithmic;
     if (args.no_eigenvalues_first) options.eigenvalues_first = false;
+    if (args.no_crossing_escape) options.max_crossing_escapes = 0;
     options.newton_solver = args.newton_solver == "block" ? FullSpaceOptions::NewtonSolver::BlockElimination
                                                           : FullSpaceOptions::NewtonSolver::Ipopt;
     options.mu_init = args.mu_init;
@@ -108,7 +110,10 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     if (!args.quiet) options.progress = print_kkt;
     std::fflush(stdout);
     const FullSpaceSummary summary = minimize_fullspace(objective, p0, options);
-    std::printf("%s\n%s\n\n", summary.BriefReport().c_str(), summary.message.c_str());
+    std::printf("%s\n%s\n", summary.BriefReport().c_str(), summary.message.c_str());
+    for (const CrossingEscape& escape : summary.crossing_escapes)
+      std::printf("crossing escape: %s\n", escape.ToString().c_str());
+    std::printf("\n");
     report = make_report(objective, summary.initial, summary.final);
     report.summary = summary_json(problem, summary);
     usable = summary.converged();
@@ -297,6 +302,9 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"ipopt", "block"}))
       ->default_str(args->newton_solver);
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
+  cmd->add_flag("--no-crossing-escape", args->no_crossing_escape,
+                "fullspace: accept a minimum where two measured modes pair with model modes in crossed order (default: "
+                "globalize again from there on the eigenvalues in frequency order and keep the lower minimum)");
   cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");
   cmd->add_option("--ipopt-print-level", args->print_level, "fullspace: Ipopt's own output (0-12, default 0)")

@@ -203,6 +203,13 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
                           {"reason", summary.mode_check.reason},
                           {"mac", summary.mode_check.mac},
                           {"eigenvalue_error", summary.mode_check.eigenvalue_error}};
+  nlohmann::json escapes = nlohmann::json::array();
+  for (const CrossingEscape& e : summary.crossing_escapes)
+    escapes.push_back({{"crossing", e.crossing},
+                       {"objective_at_minimum", json_number(e.objective_at_minimum)},
+                       {"objective_after", json_number(e.objective_after)},
+                       {"converged", e.converged},
+                       {"kept", e.kept}});
   nlohmann::json json = {{"problem", problem.path},
           {"method", "fullspace"},
           {"converged", summary.converged()},
@@ -214,6 +221,7 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
           {"iterations", summary.iterations},
           {"globalization_iterations", summary.globalization_iterations},
           {"restarts", summary.restarts},
+          {"crossing_escapes", escapes},
           {"initial_objective", summary.initial_objective},
           {"final_objective", json_number(summary.final_objective)},
           {"forward_solves", summary.forward_solves},

@@ -40,6 +40,8 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
     return bad("globalization_reduction = " + std::to_string(globalization_reduction) + ": must be in (0, 1]");
   if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + std::to_string(guard_mac) + ": must be in (0, 1)");
   if (max_restarts < 0) return bad("max_restarts = " + std::to_string(max_restarts) + ": must be >= 0");
+  if (max_crossing_escapes < 0)
+    return bad("max_crossing_escapes = " + std::to_string(max_crossing_escapes) + ": must be >= 0");
   if (!(verify_mac > 0 && verify_mac < 1)) return bad("verify_mac = " + std::to_string(verify_mac) + ": must be in (0, 1)");
   if (!(verify_eigenvalue_tolerance > 0 && verify_eigenvalue_tolerance < 1))
     return bad("verify_eigenvalue_tolerance = " + std::to_string(verify_eigenvalue_tolerance) + ": must be in (0, 1)");
@@ -49,6 +51,13 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
   if (print_level < 0 || print_level > 12)
     return bad("print_level = " + std::to_string(print_level) + ": must be in [0, 12]");
   return true;
+}
+
+std::string CrossingEscape::ToString() const {
+  char values[160];
+  std::snprintf(values, sizeof values, " at J = %.6e; the escape %s at J = %.6e: ", objective_at_minimum,
+                converged ? "converged" : "ended unconverged", objective_after);
+  return crossing + values + (kept ? "its end point kept" : "the first minimum kept");
 }
 
 std::string FullSpaceSummary::BriefReport() const {
@@ -65,6 +74,7 @@ std::string FullSpaceSummary::BriefReport() const {
 std::string FullSpaceSummary::FullReport() const {
   std::string out = BriefReport() + "\n" + message + "\n";
   if (!mode_check.passed && !mode_check.reason.empty()) out += "mode check: " + mode_check.reason + "\n";
+  for (const CrossingEscape& escape : crossing_escapes) out += "crossing escape: " + escape.ToString() + "\n";
   char line[240];
   std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Newton phase %.2f s, mode guard %.2f s, total %.2f s\n",
                 num_unknowns, num_constraints, newton_seconds, guard_seconds, seconds);

@@ -43,6 +43,39 @@ double parameter_error(const std::optional<Vector>& truth, const Vector& p) {
   return (p.array() / truth->array() - 1).abs().maxCoeff();
 }
 
+// The first two MAC-paired measured modes whose model modes come in the opposite order of their
+// frequencies, described ("measured modes 3 ('mode 3') and 4 ('mode 4') pair with model modes 4
+// and 3"), or empty when no pairs cross.
+std::string crossed_pairs(const Problem& problem, const std::vector<PairedMode>& pairs) {
+  for (const PairedMode& a : pairs)
+    for (const PairedMode& b : pairs) {
+      const MeasuredMode &ma = problem.measured[a.measured], &mb = problem.measured[b.measured];
+      if (ma.pairing.kind != PairingRule::Kind::Mac || mb.pairing.kind != PairingRule::Kind::Mac) continue;
+      if (!(ma.frequency_hz < mb.frequency_hz && a.model > b.model)) continue;
+      auto name = [](const MeasuredMode& m, int index) {
+        return std::to_string(index + 1) + (m.label.empty() ? "" : " ('" + m.label + "')");
+      };
+      return "measured modes " + name(ma, a.measured) + " and " + name(mb, b.measured) + " pair with model modes " +
+             std::to_string(a.model + 1) + " and " + std::to_string(b.model + 1);
+    }
+  return "";
+}
+
+// Puts back the end point of an earlier attempt (its result fields), keeping the counters and
+// histories of every attempt.
+void keep_result(const FullSpaceSummary& from, FullSpaceSummary* to) {
+  to->newton_status = from.newton_status;
+  to->final = from.final;
+  to->final_objective = from.final_objective;
+  to->convergence_order = from.convergence_order;
+  to->mode_check = from.mode_check;
+  to->multipliers = from.multipliers;
+  to->normalization_multipliers = from.normalization_multipliers;
+  to->eigenvalues = from.eigenvalues;
+  to->modes = from.modes;
+  to->measured_of_mode = from.measured_of_mode;
+}
+
 // Compares the full-space eigenpairs with a forward solve at their p, paired as the reduced
 // objective pairs.
 ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const Vector& x, const Evaluation& forward,
@@ -114,12 +147,16 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     for (MeasuredMode& m : eigenvalue_problem->measured) m.shape_weight = 0;
     eigenvalue_objective = std::make_unique<Objective>(*eigenvalue_problem, global_objective.options());
   }
+  // The crossing escape's: eigenvalue terms alone, compared in frequency order (made when needed).
+  std::unique_ptr<Problem> escape_problem;
+  std::unique_ptr<Objective> escape_objective;
   auto finish = [&](FullSpaceStatus status, const std::string& message) {
     summary.status = status;
     if (summary.message.empty()) summary.message = message;
     summary.forward_solves = objective.forward_solves() - forward_solves_before +
                              (misfit_objective ? misfit_objective->forward_solves() : 0) +
-                             (eigenvalue_objective ? eigenvalue_objective->forward_solves() : 0);
+                             (eigenvalue_objective ? eigenvalue_objective->forward_solves() : 0) +
+                             (escape_objective ? escape_objective->forward_solves() : 0);
     summary.seconds = seconds_since(start);
     return summary;
   };
@@ -144,9 +181,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     return run.final;
   };
   auto globalize = [&](const Vector& from, int iterations) { return globalize_on(global_objective, from, iterations); };
-  Vector p = start_point;
-  if (eigenvalue_objective) p = globalize_on(*eigenvalue_objective, p, options.globalization_iterations);
-  if (options.globalization_iterations > 0) p = globalize(p, options.globalization_iterations);
+  Vector globalized = start_point;
+  if (eigenvalue_objective) globalized = globalize_on(*eigenvalue_objective, globalized, options.globalization_iterations);
+  if (options.globalization_iterations > 0) globalized = globalize(globalized, options.globalization_iterations);
 
   const ParameterScaling scaling = options.scaling ? ParameterScaling(problem.parameters, *options.scaling)
                                                    : ParameterScaling(problem.parameters);
@@ -162,129 +199,181 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     }
     return globalize(from, std::max(options.globalization_iterations, 10));
   };
-  detail::FullSpaceProblem fp(objective, scaling, p);
+  detail::FullSpaceProblem fp(objective, scaling, globalized);
   summary.num_unknowns = fp.num_variables();
   summary.num_constraints = fp.num_constraints();
 
   const std::string solver_name = to_string(options.newton_solver);
   summary.newton_solver = solver_name;
-  detail::NewtonPhaseResult run;
-  bool converged_run = false;
-  size_t attempt_start = 0;  // first KKT record of the last attempt
-  for (;;) {
-    // 2. Start from the forward solution at p, signs aligned, multipliers from the adjoint.
-    const Evaluation e = objective.evaluate(p, Need::Gradient);
-    if (!e.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "start of the Newton phase: " + e.message);
-    Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
-    Vector lambda(fp.num_modes()), eta(fp.num_modes());
-    for (int i = 0; i < fp.num_modes(); ++i) {
-      const int m = fp.measured_of(i);
-      const int k = e.pairs[m].model;
-      const double sign = fp.shape_sign(i, e.modal.modes.col(k));
-      U.col(i) = sign * e.modal.modes.col(k);
-      W.col(i) = sign * e.adjoint.col(m);
-      lambda[i] = e.modal.eigenvalues[k];
-      eta[i] = e.adjoint_eta[m];
-    }
-    const Vector x0 = fp.pack(U, lambda, p), y0 = fp.pack_multipliers(W, eta);
+  // 2-4. Newton from p to convergence (guarded, restarted), then the check against a forward solve.
+  struct Outcome {
+    FullSpaceStatus status = FullSpaceStatus::Failed;
+    std::string message;
+    Evaluation forward;  // at the final parameters (when the Newton phase ended normally)
+  };
+  auto solve_from = [&](Vector p) -> Outcome {
+    detail::NewtonPhaseResult run;
+    bool converged_run = false;
+    size_t attempt_start = 0;  // first KKT record of the last attempt
+    for (;;) {
+      // 2. Start from the forward solution at p, signs aligned, multipliers from the adjoint.
+      const Evaluation e = objective.evaluate(p, Need::Gradient);
+      if (!e.ok) return {FullSpaceStatus::ForwardSolveFailed, "start of the Newton phase: " + e.message, {}};
+      Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
+      Vector lambda(fp.num_modes()), eta(fp.num_modes());
+      for (int i = 0; i < fp.num_modes(); ++i) {
+        const int m = fp.measured_of(i);
+        const int k = e.pairs[m].model;
+        const double sign = fp.shape_sign(i, e.modal.modes.col(k));
+        U.col(i) = sign * e.modal.modes.col(k);
+        W.col(i) = sign * e.adjoint.col(m);
+        lambda[i] = e.modal.eigenvalues[k];
+        eta[i] = e.adjoint_eta[m];
+      }
+      const Vector x0 = fp.pack(U, lambda, p), y0 = fp.pack_multipliers(W, eta);
 
-    // 3. Newton phase, guarded.
-    Vector last_good = p, fired_at = p;
-    bool guard_fired = false;
-    const int offset = summary.iterations;
-    attempt_start = summary.kkt_history.size();
-    detail::NewtonCallback callback = [&](const detail::NewtonIteration& info, const double* x) {
-      KktRecord record;
-      record.iteration = offset + info.iteration;
-      record.objective = info.objective;
-      record.primal_infeasibility = info.primal_infeasibility;
-      record.dual_infeasibility = info.dual_infeasibility;
-      record.complementarity = info.complementarity;
-      record.mu = info.mu;
-      record.p = fp.parameters(x);
-      record.parameter_error = parameter_error(truth, record.p);
-      if (options.mode_guard) {
-        const Clock::time_point guard_start = Clock::now();
-        const Evaluation forward = objective.evaluate(record.p, Need::Value);
-        double min_mac = 0;
-        if (forward.ok) {
-          const SparseMatrix& M = fp.mass_matrix(x);
-          min_mac = 1;
-          for (int i = 0; i < fp.num_modes(); ++i) {
-            const Eigen::Map<const Vector> u(x + i * fp.num_dofs(), fp.num_dofs());
-            min_mac = std::min(min_mac, mass_mac(M, u, forward.modal.modes.col(forward.pairs[fp.measured_of(i)].model)));
+      // 3. Newton phase, guarded.
+      Vector last_good = p, fired_at = p;
+      bool guard_fired = false;
+      const int offset = summary.iterations;
+      attempt_start = summary.kkt_history.size();
+      detail::NewtonCallback callback = [&](const detail::NewtonIteration& info, const double* x) {
+        KktRecord record;
+        record.iteration = offset + info.iteration;
+        record.objective = info.objective;
+        record.primal_infeasibility = info.primal_infeasibility;
+        record.dual_infeasibility = info.dual_infeasibility;
+        record.complementarity = info.complementarity;
+        record.mu = info.mu;
+        record.p = fp.parameters(x);
+        record.parameter_error = parameter_error(truth, record.p);
+        if (options.mode_guard) {
+          const Clock::time_point guard_start = Clock::now();
+          const Evaluation forward = objective.evaluate(record.p, Need::Value);
+          double min_mac = 0;
+          if (forward.ok) {
+            const SparseMatrix& M = fp.mass_matrix(x);
+            min_mac = 1;
+            for (int i = 0; i < fp.num_modes(); ++i) {
+              const Eigen::Map<const Vector> u(x + i * fp.num_dofs(), fp.num_dofs());
+              min_mac = std::min(min_mac, mass_mac(M, u, forward.modal.modes.col(forward.pairs[fp.measured_of(i)].model)));
+            }
+          }
+          record.min_mac = min_mac;
+          summary.guard_seconds += seconds_since(guard_start);
+          if (min_mac < options.guard_mac) {
+            guard_fired = true;
+            fired_at = record.p;
+          } else {
+            last_good = record.p;
           }
         }
-        record.min_mac = min_mac;
-        summary.guard_seconds += seconds_since(guard_start);
-        if (min_mac < options.guard_mac) {
-          guard_fired = true;
-          fired_at = record.p;
-        } else {
-          last_good = record.p;
-        }
+        summary.kkt_history.push_back(record);
+        if (options.progress) options.progress(record);
+        return !guard_fired;
+      };
+      detail::NewtonPhaseOptions newton;
+      newton.max_iterations = std::max(1, options.max_iterations - summary.iterations);
+      newton.tolerance = options.tolerance;
+      newton.mu_init = options.mu_init;
+      newton.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
+      newton.derivative_test = options.ipopt_derivative_test;
+      newton.print_level = options.print_level;
+      const Clock::time_point newton_start = Clock::now();
+      run = options.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
+                ? detail::run_ipopt(fp, x0, y0, newton, callback)
+                : detail::run_block_newton(fp, x0, y0, newton, callback);
+      summary.newton_seconds += seconds_since(newton_start);
+      summary.iterations += run.iterations;
+      summary.kkt_solves += run.hessian_evaluations;
+      summary.newton_status = run.status;
+      if (run.outside_newton_region && summary.restarts < options.max_restarts &&
+          summary.iterations < options.max_iterations) {
+        ++summary.restarts;  // more reduced iterations from where Newton stalled, then Newton again
+        p = globalize(fp.parameters(run.x.data()), std::max(options.globalization_iterations, 10));
+        continue;
       }
-      summary.kkt_history.push_back(record);
-      if (options.progress) options.progress(record);
-      return !guard_fired;
-    };
-    detail::NewtonPhaseOptions newton;
-    newton.max_iterations = std::max(1, options.max_iterations - summary.iterations);
-    newton.tolerance = options.tolerance;
-    newton.mu_init = options.mu_init;
-    newton.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
-    newton.derivative_test = options.ipopt_derivative_test;
-    newton.print_level = options.print_level;
-    const Clock::time_point newton_start = Clock::now();
-    run = options.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
-              ? detail::run_ipopt(fp, x0, y0, newton, callback)
-              : detail::run_block_newton(fp, x0, y0, newton, callback);
-    summary.newton_seconds += seconds_since(newton_start);
-    summary.iterations += run.iterations;
-    summary.kkt_solves += run.hessian_evaluations;
-    summary.newton_status = run.status;
-    if (run.outside_newton_region && summary.restarts < options.max_restarts &&
-        summary.iterations < options.max_iterations) {
-      ++summary.restarts;  // more reduced iterations from where Newton stalled, then Newton again
-      p = globalize(fp.parameters(run.x.data()), std::max(options.globalization_iterations, 10));
-      continue;
+      if (!(guard_fired && run.stopped_by_callback)) {
+        converged_run = run.solved;
+        break;
+      }
+      // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).
+      if (summary.restarts >= options.max_restarts || summary.iterations >= options.max_iterations) {
+        summary.final = last_good;
+        summary.final_objective = objective.evaluate(last_good, Need::Value).value;
+        return {FullSpaceStatus::WrongModes,
+                "the mode guard fired " + std::to_string(summary.restarts + 1) +
+                    " times (an eigenpair left its measured mode); restarts exhausted",
+                {}};
+      }
+      ++summary.restarts;
+      p = backtrack(last_good, fired_at);
     }
-    if (!(guard_fired && run.stopped_by_callback)) {
-      converged_run = run.solved;
-      break;
+
+    // 4. Verify against a forward solve at the final parameters.
+    Matrix U;
+    Vector lambda;
+    fp.unpack(run.x.data(), &U, &lambda, &summary.final);
+    Outcome outcome;
+    outcome.forward = objective.evaluate(summary.final, Need::Value);
+    const Evaluation& final_forward = outcome.forward;
+    summary.mode_check = check_modes(objective, fp, run.x, final_forward, options);
+    summary.final_objective = final_forward.ok ? final_forward.value : NAN;
+    summary.eigenvalues = lambda;
+    summary.modes = U;
+    summary.measured_of_mode = fp.measured_modes();
+    fp.unpack_multipliers(run.y.data(), &summary.multipliers, &summary.normalization_multipliers);
+    std::vector<double> errors;
+    for (size_t k = attempt_start; k < summary.kkt_history.size(); ++k)  // the rate of the attempt that finished
+      errors.push_back(std::max(summary.kkt_history[k].primal_infeasibility, summary.kkt_history[k].dual_infeasibility));
+    summary.convergence_order = estimate_convergence_order(errors);
+
+    if (converged_run && summary.mode_check.passed) {
+      outcome.status = FullSpaceStatus::Converged;
+      outcome.message = solver_name + ": " + run.status;
+    } else if (converged_run) {
+      outcome.status = FullSpaceStatus::WrongModes;
+      outcome.message = summary.mode_check.reason;
+    } else {
+      outcome.status = run.max_iterations ? FullSpaceStatus::MaxIterations : FullSpaceStatus::Failed;
+      outcome.message = run.max_iterations ? solver_name + ": " + run.status : run.message;
     }
-    // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).
-    if (summary.restarts >= options.max_restarts || summary.iterations >= options.max_iterations) {
-      summary.final = last_good;
-      summary.final_objective = objective.evaluate(last_good, Need::Value).value;
-      return finish(FullSpaceStatus::WrongModes,
-                    "the mode guard fired " + std::to_string(summary.restarts + 1) +
-                        " times (an eigenpair left its measured mode); restarts exhausted");
+    return outcome;
+  };
+
+  Outcome outcome = solve_from(globalized);
+  // 5. Escape from a minimum where paired modes cross (FullSpaceOptions::max_crossing_escapes).
+  for (int escape = 0; escape < options.max_crossing_escapes && weighted_eigenvalues && options.globalization_iterations > 0 &&
+                       outcome.status == FullSpaceStatus::Converged;
+       ++escape) {
+    const std::string crossing = crossed_pairs(problem, outcome.forward.pairs);
+    if (crossing.empty()) break;
+    if (!escape_objective) {
+      escape_problem = std::make_unique<Problem>(problem);
+      for (MeasuredMode& m : escape_problem->measured) m.shape_weight = 0;
+      ObjectiveOptions in_order = global_objective.options();
+      in_order.eigenvalues_in_frequency_order = true;
+      escape_objective = std::make_unique<Objective>(*escape_problem, in_order);
     }
-    ++summary.restarts;
-    p = backtrack(last_good, fired_at);
+    const FullSpaceSummary minimum = summary;
+    const Outcome minimum_outcome = outcome;
+    Vector from = globalize_on(*escape_objective, summary.final, options.globalization_iterations);
+    from = globalize(from, options.globalization_iterations);
+    outcome = solve_from(from);
+    CrossingEscape record;
+    record.crossing = crossing;
+    record.objective_at_minimum = minimum.final_objective;
+    record.objective_after = summary.final_objective;
+    record.converged = outcome.status == FullSpaceStatus::Converged;
+    record.kept = record.converged && summary.final_objective < minimum.final_objective;
+    if (!record.kept) {
+      keep_result(minimum, &summary);
+      outcome = minimum_outcome;
+    }
+    summary.crossing_escapes.push_back(record);
+    if (!record.kept) break;
   }
-
-  // 4. Verify against a forward solve at the final parameters.
-  Matrix U;
-  Vector lambda;
-  fp.unpack(run.x.data(), &U, &lambda, &summary.final);
-  const Evaluation final_forward = objective.evaluate(summary.final, Need::Value);
-  summary.mode_check = check_modes(objective, fp, run.x, final_forward, options);
-  summary.final_objective = final_forward.ok ? final_forward.value : NAN;
-  summary.eigenvalues = lambda;
-  summary.modes = U;
-  summary.measured_of_mode = fp.measured_modes();
-  fp.unpack_multipliers(run.y.data(), &summary.multipliers, &summary.normalization_multipliers);
-  std::vector<double> errors;
-  for (size_t k = attempt_start; k < summary.kkt_history.size(); ++k)  // the rate of the attempt that finished
-    errors.push_back(std::max(summary.kkt_history[k].primal_infeasibility, summary.kkt_history[k].dual_infeasibility));
-  summary.convergence_order = estimate_convergence_order(errors);
-
-  if (converged_run && summary.mode_check.passed) return finish(FullSpaceStatus::Converged, solver_name + ": " + run.status);
-  if (converged_run) return finish(FullSpaceStatus::WrongModes, summary.mode_check.reason);
-  if (run.max_iterations) return finish(FullSpaceStatus::MaxIterations, solver_name + ": " + run.status);
-  return finish(FullSpaceStatus::Failed, run.message);
+  return finish(outcome.status, outcome.message);
 }
 
 }  // namespace modalcal
