@@ -392,8 +392,13 @@ TEST(FullSpace, BlockEliminationRecoversTheTruthFromFarStartsAndAgreesWithIpopt)
     ASSERT_FALSE(block.kkt_history.empty());
     EXPECT_LT(block.kkt_history.back().kkt_error(), 1e-10) << block.FullReport();
     EXPECT_LE(block.iterations, 15) << block.FullReport();
+    // It ends in Newton's region: full, unshifted steps (each record holds the step into it).
+    EXPECT_EQ(block.kkt_history.back().step_length, 1.0) << block.FullReport();
+    EXPECT_EQ(block.kkt_history.back().hessian_shift, 0.0) << block.FullReport();
+    EXPECT_EQ(block.kkt_history.front().step_length, 0.0) << block.FullReport();
     const FullSpaceSummary ipopt = minimize_fullspace(ipopt_objective, start, {});
     ASSERT_TRUE(ipopt.converged()) << ipopt.FullReport();
+    EXPECT_EQ(ipopt.kkt_history.back().step_length, 1.0) << ipopt.FullReport();
     EXPECT_LT(MaxRelativeError(block.final, ipopt.final), 1e-8);
   }
 }

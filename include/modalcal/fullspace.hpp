@@ -142,6 +142,13 @@ struct KktRecord {
   double dual_infeasibility = 0;    ///< max |gradient of the Lagrangian|
   double complementarity = 0;       ///< max |z (x - bound)|, bounds on p only
   double mu = 0;                    ///< barrier parameter
+  /// Step length of the step that led here (0 at the start of an attempt): 1 is a full Newton
+  /// step; less means the line search (or Ipopt's fraction to the boundary) cut it.
+  double step_length = 0;
+  /// Shift added to the Hessian for that step because it lacked the right inertia, in the scaled
+  /// unknowns: Ipopt's regularization of W, the block solver's of the reduced Hessian. 0: a pure
+  /// Newton step.
+  double hessian_shift = 0;
   /// KKT error max(primal, dual, complementarity).
   double kkt_error() const;
   double parameter_error = NAN;     ///< max_j |p_j / p_true_j - 1| when the truth is known

@@ -186,6 +186,8 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
                         {"complementarity", r.complementarity},
                         {"kkt_error", r.kkt_error()},
                         {"mu", r.mu},
+                        {"step_length", r.step_length},
+                        {"hessian_shift", r.hessian_shift},
                         {"parameter_error", json_number(r.parameter_error)},
                         {"guard_min_mac", json_number(r.min_mac)}};
     kkt.push_back(k);

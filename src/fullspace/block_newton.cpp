@@ -65,6 +65,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     result.objective = problem.objective(x.data());
     return result;
   };
+  double last_step_length = 0, last_shift = 0;  // of the step that led to the current iterate
   for (int k = 0;; ++k) {
     std::string error;
     if (!kkt.build(x, y, &error)) return finish("Singular_Mode_Block", false, "block Newton: " + error);
@@ -78,6 +79,8 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     info.objective = f0;
     info.primal_infeasibility = primal;
     info.dual_infeasibility = dual;
+    info.step_length = last_step_length;
+    info.hessian_shift = last_shift;
     if (callback && !callback(info, x.data())) {
       result.stopped_by_callback = true;
       return finish("User_Requested_Stop", false, "");
@@ -96,7 +99,8 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     const Eigen::SelfAdjointEigenSolver<Matrix> spectrum(H, Eigen::EigenvaluesOnly);
     const double largest = std::max(spectrum.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
     const double smallest = spectrum.eigenvalues().minCoeff();
-    if (smallest < 1e-8 * largest) H.diagonal().array() += 1e-4 * largest - smallest;
+    last_shift = smallest < 1e-8 * largest ? 1e-4 * largest - smallest : 0.0;
+    H.diagonal().array() += last_shift;
     // Trust region on q (a box, so the QP stays a box QP): far from the solution the reduced
     // Hessian can be nearly singular along a parameter the data barely see, and the Newton step
     // along it leaves the region where the linearized eigen-constraints mean anything.
@@ -156,6 +160,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     radius = alpha == 1 ? std::max(radius, 2 * length) : std::max(alpha * length, 1e-8);
     x += alpha * dx;
     y += alpha * dy;
+    last_step_length = alpha;
   }
 }
 

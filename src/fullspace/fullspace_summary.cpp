@@ -79,12 +79,13 @@ std::string FullSpaceSummary::FullReport() const {
   std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Newton phase %.2f s, mode guard %.2f s, total %.2f s\n",
                 num_unknowns, num_constraints, newton_seconds, guard_seconds, seconds);
   out += line;
-  std::snprintf(line, sizeof line, "%5s %14s %11s %11s %11s %10s %12s %8s\n", "iter", "objective", "inf_pr", "inf_du",
-                "compl", "mu", "param error", "min MAC");
+  std::snprintf(line, sizeof line, "%5s %14s %11s %11s %11s %10s %6s %9s %12s %8s\n", "iter", "objective", "inf_pr",
+                "inf_du", "compl", "mu", "alpha", "shift", "param error", "min MAC");
   out += line;
   for (const KktRecord& r : kkt_history) {
-    std::snprintf(line, sizeof line, "%5d %14.6e %11.3e %11.3e %11.3e %10.2e %12.4e %8.5f\n", r.iteration, r.objective,
-                  r.primal_infeasibility, r.dual_infeasibility, r.complementarity, r.mu, r.parameter_error, r.min_mac);
+    std::snprintf(line, sizeof line, "%5d %14.6e %11.3e %11.3e %11.3e %10.2e %6.3f %9.2e %12.4e %8.5f\n", r.iteration,
+                  r.objective, r.primal_infeasibility, r.dual_infeasibility, r.complementarity, r.mu, r.step_length,
+                  r.hessian_shift, r.parameter_error, r.min_mac);
     out += line;
   }
   return out;

@@ -245,6 +245,8 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
         record.dual_infeasibility = info.dual_infeasibility;
         record.complementarity = info.complementarity;
         record.mu = info.mu;
+        record.step_length = info.step_length;
+        record.hessian_shift = info.hessian_shift;
         record.p = fp.parameters(x);
         record.parameter_error = parameter_error(truth, record.p);
         if (options.mode_guard) {

@@ -23,6 +23,8 @@ struct NewtonPhaseOptions {
 struct NewtonIteration {
   int iteration = 0;
   double objective = 0, primal_infeasibility = 0, dual_infeasibility = 0, complementarity = 0, mu = 0;
+  double step_length = 0;    ///< of the step that led here (0 at the start)
+  double hessian_shift = 0;  ///< added to the Hessian for that step (inertia correction)
 };
 
 /// Called after every iteration with the current unknowns; returning false stops the solver.

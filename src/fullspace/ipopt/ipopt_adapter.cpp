@@ -135,7 +135,8 @@ class CalibrationTnlp : public Ipopt::TNLP {
   }
 
   bool intermediate_callback(Ipopt::AlgorithmMode mode, Ipopt::Index iter, Number objective, Number inf_pr,
-                             Number inf_du, Number mu, Number, Number, Number, Number, Ipopt::Index,
+                             Number inf_du, Number mu, Number, Number regularization_size, Number, Number alpha_pr,
+                             Ipopt::Index,
                              const Ipopt::IpoptData* data, Ipopt::IpoptCalculatedQuantities* quantities) override {
     result_->iterations = iter;
     if (!callback_) return true;
@@ -145,6 +146,8 @@ class CalibrationTnlp : public Ipopt::TNLP {
     info.primal_infeasibility = inf_pr;
     info.dual_infeasibility = inf_du;
     info.mu = mu;
+    info.step_length = iter == 0 ? 0 : alpha_pr;
+    info.hessian_shift = regularization_size;
     // The iterate, in the TNLP's ordering; unavailable during the restoration phase.
     const double* x = nullptr;
     if (mode == Ipopt::RegularMode && data && quantities) {
