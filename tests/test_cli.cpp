@@ -209,6 +209,10 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   const auto& last = j["kkt_history"].back();
   EXPECT_LT(last["kkt_error"].get<double>(), 1e-8);
   EXPECT_LT(last["parameter_error"].get<double>(), 1e-6);
+  EXPECT_EQ(last["step_length"].get<double>(), 1.0);  // Newton's tail: full steps
+  EXPECT_TRUE(last["hessian_shift"].is_number());
+  ASSERT_TRUE(j["crossing_escapes"].is_array());
+  EXPECT_TRUE(j["crossing_escapes"].empty());  // the truth pairs in order: nothing to escape from
   EXPECT_TRUE(j["convergence_order"].is_number());
   for (const char* key : {"iterations", "forward_solves", "kkt_solves", "time_s", "history", "modes"})
     EXPECT_TRUE(j.contains(key)) << key;
