@@ -113,8 +113,8 @@ struct ObjectiveOptions {
   ///   modes cross as p changes, their MAC pairs swap and the paired eigenvalue terms jump, which
   ///   leaves a barrier that a descent method cannot cross (on LFU, a minimum with J = 0.40 and
   ///   modes 3 and 4 swapped); compared in order, the eigenvalue terms stay continuous. Only for an
-  ///   objective without shape terms (the full-space globalization's eigenvalues-first stage):
-  ///   the Objective refuses it otherwise.
+  ///   objective without shape terms (the full-space escape from crossed pairs,
+  ///   FullSpaceOptions::max_crossing_escapes): the Objective refuses it otherwise.
   bool eigenvalues_in_frequency_order = false;
   bool IsValid(std::string* error) const;
 };

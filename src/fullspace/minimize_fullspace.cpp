@@ -135,20 +135,24 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     misfit_objective = std::make_unique<Objective>(problem, global_options);
   }
   Objective& global_objective = misfit_objective ? *misfit_objective : objective;
-  // The eigenvalues-first stage's objective: the same, with every shape weight 0.
+  // The eigenvalues-first stage and the crossing escape minimize the eigenvalue terms alone: the
+  // same problem with every shape weight 0 (the shapes still pair the modes), made once when needed.
   const bool weighted_shapes = std::any_of(problem.measured.begin(), problem.measured.end(),
                                            [](const MeasuredMode& m) { return m.has_shape_term(); });
   const bool weighted_eigenvalues = std::any_of(problem.measured.begin(), problem.measured.end(),
                                                 [](const MeasuredMode& m) { return m.weight > 0; });
   std::unique_ptr<Problem> eigenvalue_problem;
+  auto eigenvalue_terms = [&]() -> const Problem& {
+    if (!eigenvalue_problem) {
+      eigenvalue_problem = std::make_unique<Problem>(problem);
+      for (MeasuredMode& m : eigenvalue_problem->measured) m.shape_weight = 0;
+    }
+    return *eigenvalue_problem;
+  };
   std::unique_ptr<Objective> eigenvalue_objective;
-  if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes && weighted_eigenvalues) {
-    eigenvalue_problem = std::make_unique<Problem>(problem);
-    for (MeasuredMode& m : eigenvalue_problem->measured) m.shape_weight = 0;
-    eigenvalue_objective = std::make_unique<Objective>(*eigenvalue_problem, global_objective.options());
-  }
-  // The crossing escape's: eigenvalue terms alone, compared in frequency order (made when needed).
-  std::unique_ptr<Problem> escape_problem;
+  if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes && weighted_eigenvalues)
+    eigenvalue_objective = std::make_unique<Objective>(eigenvalue_terms(), global_objective.options());
+  // The crossing escape's: compared in frequency order (made when needed).
   std::unique_ptr<Objective> escape_objective;
   auto finish = [&](FullSpaceStatus status, const std::string& message) {
     summary.status = status;
@@ -351,11 +355,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     const std::string crossing = crossed_pairs(problem, outcome.forward.pairs);
     if (crossing.empty()) break;
     if (!escape_objective) {
-      escape_problem = std::make_unique<Problem>(problem);
-      for (MeasuredMode& m : escape_problem->measured) m.shape_weight = 0;
       ObjectiveOptions in_order = global_objective.options();
       in_order.eigenvalues_in_frequency_order = true;
-      escape_objective = std::make_unique<Objective>(*escape_problem, in_order);
+      escape_objective = std::make_unique<Objective>(eigenvalue_terms(), in_order);
     }
     const FullSpaceSummary minimum = summary;
     const Outcome minimum_outcome = outcome;
