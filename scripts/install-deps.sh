@@ -3,7 +3,8 @@
 # Why each: Ipopt+MUMPS (full-space NLP; MUMPS also directly, for the block Newton solver), Eigen (dense/sparse containers), SuiteSparse (CHOLMOD
 # supernodal Cholesky), OpenBLAS (CHOLMOD is 7-10x slower on reference BLAS), Spectra (Lanczos),
 # GoogleTest, yaml-cpp (problem files with line numbers), CLI11, nlohmann-json, gnuplot (plots),
-# VTK's Python module (the test that reads the VTU files back with an independent reader),
+# VTK's Python module and NumPy, which its numpy_support needs (the test that reads the VTU files
+# back with an independent reader),
 # Gmsh and Exodus II (reading .msh and Exodus meshes; the gmsh program turns a .geo into a .msh).
 # With MODALCAL_WITH_ROL=1 also Trilinos ROL (header-only) and the Teuchos/Kokkos libraries it
 # links, for the seed-optimizer baseline (cmake -DMODALCAL_WITH_ROL=ON); the default build does
@@ -12,7 +13,7 @@ set -euo pipefail
 packages=(
   g++ cmake make pkg-config
   coinor-libipopt-dev libmumps-seq-dev libeigen3-dev libsuitesparse-dev libopenblas-dev libspectra-dev
-  libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox python3-vtk9
+  libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox python3-vtk9 python3-numpy
   libgmsh-dev gmsh libexodusii-dev
 )
 if [ "${MODALCAL_WITH_ROL:-0}" = 1 ]; then

@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -14,6 +13,8 @@
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+
+#include "support/random_draws.hpp"
 
 namespace modalcal {
 namespace {
@@ -55,15 +56,15 @@ Eigen::Matrix3Xd WithMidNodes(const Eigen::Matrix3Xd& corners) {
 /// Random affine map x -> A x + t with det A > 0, then random nodal perturbations of size
 /// `jitter`: a genuinely distorted (non-affine for hex8) but valid element.
 Eigen::Matrix3Xd Distort(const Eigen::Matrix3Xd& x, double jitter, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  detail::Uniform rng_draws(seed);
+  auto u = [&] { return rng_draws(-1.0, 1.0); };
   Mat3 A;
-  for (int i = 0; i < 9; ++i) A(i) = (i % 4 == 0 ? 1.0 : 0.0) + 0.3 * u(rng);
+  for (int i = 0; i < 9; ++i) A(i) = (i % 4 == 0 ? 1.0 : 0.0) + 0.3 * u();
   EXPECT_GT(A.determinant(), 0.0);
-  const Vec3 t(u(rng), u(rng), u(rng));
+  const Vec3 t(u(), u(), u());
   Eigen::Matrix3Xd y = A * x;
   y.colwise() += t;
-  for (int i = 0; i < y.size(); ++i) y(i) += jitter * u(rng);
+  for (int i = 0; i < y.size(); ++i) y(i) += jitter * u();
   return y;
 }
 
@@ -80,10 +81,10 @@ Eigen::Matrix3Xd DistortedElement(SolidType type, unsigned seed, Shape shape = S
     case SolidType::Tet10: {
       Eigen::Matrix3Xd x = WithMidNodes(Distort(UnitTet4(), 0.15, seed));
       if (shape == Shape::Curved) {
-        std::mt19937 rng(seed + 1000);
-        std::uniform_real_distribution<double> u(-0.04, 0.04);
+        detail::Uniform rng_draws(seed + 1000);
+        auto u = [&] { return rng_draws(-0.04, 0.04); };
         for (int j = 4; j < 10; ++j)
-          for (int i = 0; i < 3; ++i) x(i, j) += u(rng);
+          for (int i = 0; i < 3; ++i) x(i, j) += u();
       }
       return x;
     }
@@ -283,8 +284,8 @@ TEST(SolidElements, RigidBodyModesAreExactlyTheNullSpace) {
 // Linear fields are reproduced exactly, so 1/2 u^T K u must equal V 1/2 eps^T D eps. The tet10
 // is straight-sided: its 4-point rule integrates det J exactly only for affine geometry.
 TEST(SolidElements, SingleElementPatchTestEnergy) {
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  detail::Uniform rng_draws(11);
+  auto u = [&] { return rng_draws(-1.0, 1.0); };
   const Eigen::Matrix<double, 6, 6> D = Elasticity(kBulk, kShear);
   for (SolidType type : kAllTypes) {
     SCOPED_TRACE(solid_type_name(type));
@@ -292,8 +293,8 @@ TEST(SolidElements, SingleElementPatchTestEnergy) {
     const Matrix K = Stiffness(solid_element_matrices(type, x));
     for (int trial = 0; trial < 3; ++trial) {
       Mat3 A;
-      for (int i = 0; i < 9; ++i) A(i) = u(rng);
-      const Vec3 b(u(rng), u(rng), u(rng));
+      for (int i = 0; i < 9; ++i) A(i) = u();
+      const Vec3 b(u(), u(), u());
       const Vector d = LinearField(x, A, b);
       const Eigen::Matrix<double, 6, 1> eps = VoigtStrain(A);
       const double exact = Volume(type, x) * 0.5 * eps.dot(D * eps);
@@ -306,13 +307,13 @@ TEST(SolidElements, Hex8MultiElementPatchRecoversLinearField) {
   // 3 x 3 x 3 distorted hexes; the 8 interior nodes are free, the boundary follows u = A x + b.
   constexpr int kN = 4;
   const auto id = [](int i, int j, int k) { return i + kN * j + kN * kN * k; };
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  detail::Uniform rng_draws(5);
+  auto u = [&] { return rng_draws(-1.0, 1.0); };
   Eigen::Matrix3Xd nodes(3, kN * kN * kN);
   for (int k = 0; k < kN; ++k)
     for (int j = 0; j < kN; ++j)
       for (int i = 0; i < kN; ++i)
-        nodes.col(id(i, j, k)) = Vec3(i, j, k) + 0.25 * Vec3(u(rng), u(rng), u(rng));
+        nodes.col(id(i, j, k)) = Vec3(i, j, k) + 0.25 * Vec3(u(), u(), u());
 
   const int ndof = 3 * nodes.cols();
   Matrix K = Matrix::Zero(ndof, ndof);
@@ -570,14 +571,14 @@ Mat3 SomeRotation() {
 
 TEST(JointElements, TranslationalComponentEnergy) {
   const Mat3 frame = SomeRotation();
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  detail::Uniform rng_draws(3);
+  auto u = [&] { return rng_draws(-1.0, 1.0); };
   Eigen::Matrix<double, 12, 12> sum = Eigen::Matrix<double, 12, 12>::Zero();
   for (int c = 0; c < 3; ++c) {
     const Eigen::Matrix<double, 12, 12> K = joint_component_matrix(frame, c);
     sum += K;
     Eigen::Matrix<double, 12, 1> q;
-    for (int i = 0; i < 12; ++i) q(i) = u(rng);
+    for (int i = 0; i < 12; ++i) q(i) = u();
     const Vec3 d = q.segment<3>(6) - q.segment<3>(0);
     const double e_d = frame.row(c).dot(d);
     EXPECT_NEAR(0.5 * q.dot(K * q), 0.5 * e_d * e_d, 1e-15);

@@ -65,8 +65,13 @@ TEST(LfuHiddenData, TheReadmeCommandsReproduceEveryDataFile) {
     for (size_t k = 1; k + 1 < words.size(); ++k) command += " '" + words[k] + "'";
     command += " '" + (out / data).string() + "' > /dev/null";
     ASSERT_EQ(std::system(command.c_str()), 0) << command;
-    EXPECT_EQ(ReadFile((out / data).string()), ReadFile(folder + "/" + data)) << data << " differs from what\n"
-                                                                              << line << "\nmakes";
+    // The eigen-solve is not bit-identical across CPUs and BLAS thread counts, so the numbers
+    // are compared to what the solve determines: eigenvalues to its relative residual 1e-10,
+    // shapes (largest value 1) to 1e-10 over the smallest relative gap between the nine modes
+    // (about 4 %), both with a margin of 100; far below the noise (2e-3, 2e-2) the files carry.
+    const std::string difference =
+        testing::NumericTextDifference(ReadFile((out / data).string()), ReadFile(folder + "/" + data), 1e-8, 1e-7);
+    EXPECT_EQ(difference, "") << data << " differs from what\n" << line << "\nmakes";
     ++commands;
   }
   EXPECT_EQ(commands, 6);

@@ -5,7 +5,7 @@
 
 #include "modalcal/objective.hpp"
 #include "modalcal/residual_test.hpp"
-#include "diagnostics/standard_normal.hpp"
+#include "support/random_draws.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -6,7 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "diagnostics/standard_normal.hpp"
+#include "support/random_draws.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
 #include "modalcal/measured_data.hpp"

@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <cstdlib>
 #include <fstream>
+#include <regex>
 #include <sstream>
+#include <vector>
 
 namespace modalcal::testing {
 
@@ -71,6 +74,53 @@ options:
 double RelativeDifference(const Matrix& a, const Matrix& b) {
   const double scale = b.cwiseAbs().maxCoeff();
   return (a - b).cwiseAbs().maxCoeff() / (scale > 0 ? scale : 1.0);
+}
+
+namespace {
+
+// The text split into alternating non-number and number tokens; numbers parsed with strtod.
+struct Token {
+  std::string text;
+  bool is_number = false;
+  double value = 0;
+  int line = 1;
+};
+
+std::vector<Token> Tokenize(const std::string& text) {
+  static const std::regex number(R"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)");
+  std::vector<Token> tokens;
+  int line = 1;
+  auto add_text = [&](std::string piece) {
+    if (piece.empty()) return;
+    tokens.push_back({piece, false, 0, line});
+    line += static_cast<int>(std::count(piece.begin(), piece.end(), '\n'));
+  };
+  auto begin = std::sregex_iterator(text.begin(), text.end(), number);
+  size_t end_of_last = 0;
+  for (auto it = begin; it != std::sregex_iterator(); ++it) {
+    add_text(text.substr(end_of_last, it->position() - end_of_last));
+    tokens.push_back({it->str(), true, std::strtod(it->str().c_str(), nullptr), line});
+    end_of_last = it->position() + it->length();
+  }
+  add_text(text.substr(end_of_last));
+  return tokens;
+}
+
+}  // namespace
+
+std::string NumericTextDifference(const std::string& actual, const std::string& expected, double relative,
+                                  double absolute) {
+  const std::vector<Token> a = Tokenize(actual), b = Tokenize(expected);
+  for (size_t k = 0; k < std::min(a.size(), b.size()); ++k) {
+    const bool same = a[k].is_number && b[k].is_number
+                          ? std::abs(a[k].value - b[k].value) <= absolute + relative * std::abs(b[k].value)
+                          : a[k].text == b[k].text;
+    if (!same)
+      return "line " + std::to_string(b[k].line) + ": '" + a[k].text + "' where '" + b[k].text + "' was expected";
+  }
+  if (a.size() != b.size()) return "one text ends before the other (" + std::to_string(a.size()) + " against " +
+                                   std::to_string(b.size()) + " tokens)";
+  return "";
 }
 
 std::string SourcePath(const std::string& relative) { return std::string(MODALCAL_SOURCE_DIR) + "/" + relative; }

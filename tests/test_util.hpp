@@ -15,6 +15,14 @@ namespace modalcal::testing {
 ::testing::AssertionResult IsClose(double a, double b, double rel_tol, double floor = 0.0);
 #define EXPECT_CLOSE(a, b, tol) EXPECT_TRUE(::modalcal::testing::IsClose((a), (b), (tol)))
 
+/// Compares two texts that differ only in the last digits of their numbers: the parts between
+/// numbers must be equal, and each pair of numbers must satisfy
+/// |a - b| <= absolute + relative |b|. Returns "" when they agree, otherwise where they first
+/// differ (line and both tokens). For files written from floating-point results, which are not
+/// bit-identical across CPUs and BLAS thread counts.
+std::string NumericTextDifference(const std::string& actual, const std::string& expected, double relative,
+                                  double absolute);
+
 /// Max-abs-entry relative difference of two matrices, scaled by max |b|.
 double RelativeDifference(const Matrix& a, const Matrix& b);
 

@@ -3,7 +3,7 @@ what ParaView would show: cell types and node order, block properties, volumes a
 shapes against the measured shapes at the sensors, and the error indicator of `localize`.
 
 Usage: vtu_readback.py FULLSPACE_CALIB SOURCE_DIR WORK_DIR
-Exit code 77 (ctest: skipped) when `import vtk` fails.
+Fails (exit 1, with what to install) when `import vtk` fails: a test that cannot run is a failure.
 """
 import json
 import math
@@ -17,9 +17,9 @@ try:
     import vtk
     from vtk.util.numpy_support import vtk_to_numpy
 except ImportError as error:
-    print(f"SKIPPED: cannot import VTK's Python module ({error}); install python3-vtk9 "
-          "(scripts/install-deps.sh) to read the VTU files back")
-    sys.exit(77)
+    print(f"FAILED: cannot import VTK's Python module ({error}); install python3-vtk9 and "
+          "python3-numpy (scripts/install-deps.sh) to read the VTU files back")
+    sys.exit(1)
 
 cli, source, work = sys.argv[1:4]
 problem = os.path.join(source, "problems/portal-frame/synthetic.yaml")

@@ -7,7 +7,8 @@
 ///
 /// Noise (MeasurementNoise): the draws come from std::mt19937_64 seeded with `seed` and a
 /// Box-Muller transform written out here (std::normal_distribution is implementation defined),
-/// so the same seed gives the same data on every platform. Draw order: for each mode in turn its
+/// so the same seed gives the same noise draws on every platform; the noise-free modes agree
+/// across CPUs to the eigen-solve's accuracy, not bit for bit. Draw order: for each mode in turn its
 /// frequency, then its shape values in sensor order; the draws do not depend on the noise levels.
 ///
 /// \code

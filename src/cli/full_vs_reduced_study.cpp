@@ -15,7 +15,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -24,6 +23,7 @@
 #include "modalcal/fullspace.hpp"
 #include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
+#include "support/random_draws.hpp"
 
 namespace modalcal::cli {
 
@@ -157,11 +157,10 @@ Run read_report(const FullVsReducedArgs& args, const Problem& problem, const std
 std::vector<Vector> study_starts(const FullVsReducedArgs& args, const Problem& problem) {
   const Vector truth = problem.truth_values(), lower = problem.lower_bounds(), upper = problem.upper_bounds();
   std::vector<Vector> starts{problem.initial_values()};
-  std::mt19937 random(args.seed);
-  std::uniform_real_distribution<double> exponent(-1.5, 0.5);
+  detail::Uniform exponent(args.seed);  // the same starts for a seed on every platform
   for (int s = 0; s < args.starts; ++s) {
     Vector p(truth.size());
-    for (int j = 0; j < p.size(); ++j) p[j] = truth[j] * std::pow(10.0, exponent(random));
+    for (int j = 0; j < p.size(); ++j) p[j] = truth[j] * std::pow(10.0, exponent(-1.5, 0.5));
     starts.push_back(p.cwiseMax(lower).cwiseMin(upper));
   }
   return starts;

@@ -7,7 +7,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "diagnostics/standard_normal.hpp"
+#include "support/random_draws.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
 #include "modalcal/mode_description.hpp"

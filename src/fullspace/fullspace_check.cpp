@@ -3,10 +3,10 @@
 // evaluations per block of unknowns at any model size.
 
 #include <cstdio>
-#include <random>
 
 #include "fullspace/fullspace_problem.hpp"
 #include "modalcal/fullspace.hpp"
+#include "support/random_draws.hpp"
 
 namespace modalcal {
 
@@ -57,11 +57,10 @@ FullSpaceDerivativeCheck check_fullspace_derivatives(Objective& objective, const
   }
   // A generic point near the solution manifold, and generic multipliers, so that no term
   // vanishes by accident.
-  std::mt19937 random(seed);
-  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  detail::Uniform uniform(seed);
   auto noise = [&](int size) {
     Vector v(size);
-    for (int k = 0; k < size; ++k) v[k] = uniform(random);
+    for (int k = 0; k < size; ++k) v[k] = uniform(-1.0, 1.0);
     return v;
   };
   Vector x = fp.pack(U, lambda, p);
