@@ -302,7 +302,7 @@ TEST(Diagnosis, FindsAHiddenMassAndLeavesACorrectModelAlone) {
   EXPECT_EQ(d.after->parameter_names.back(), "top.mass_scale");
   EXPECT_NE(d.recommendation.find("Add top.mass_scale"), std::string::npos) << d.recommendation;
   const std::string report = format_diagnosis(hidden, d);
-  for (const char* part : {"residual test:", "where the model fails", "which effect is missing", "with effect [Hz]",
+  for (const char* part : {"residual test:", "where the model fails", "which effect is missing", "with effects [Hz]", "the stepwise loop",
                            "(added: mass multiplier of block top)"})
     EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
 
@@ -313,6 +313,84 @@ TEST(Diagnosis, FindsAHiddenMassAndLeavesACorrectModelAlone) {
   EXPECT_EQ(c.recommended, -1);
   EXPECT_FALSE(c.after);
   EXPECT_NE(c.recommendation.find("No model-form error"), std::string::npos);
+}
+
+TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
+  // Two effects at once: the joint gains rotational stiffness and the top is 10 % heavier. One
+  // effect cannot explain both; the second screen, with the first effect in the model, finds the
+  // other, and then the residual is noise.
+  const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_EQ(d.steps.size(), 2u) << report;
+  std::vector<std::string> accepted = d.accepted();
+  std::sort(accepted.begin(), accepted.end());
+  EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+  EXPECT_TRUE(d.model_form_error);
+  // The chi-square falls at each step, and the step's "before" is the last step's "after".
+  EXPECT_LT(d.steps[0].effect.chi2_after, d.steps[0].chi2_before);
+  EXPECT_CLOSE(d.steps[1].chi2_before, d.steps[0].effect.chi2_after, 1e-6);
+  EXPECT_LT(d.steps[1].effect.chi2_after, d.steps[1].chi2_before);
+  ASSERT_TRUE(d.final_fit.test);
+  EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
+  // The joint acts between its two reference nodes; a block's mass scale has no single place.
+  for (const DiagnosisStep& s : d.steps) {
+    if (s.effect.candidate.name == "j.krx") {
+      ASSERT_TRUE(s.location);
+      EXPECT_LT((*s.location - Vec3(2.125, 0.5, 1.25)).norm(), 1e-12);
+    } else {
+      EXPECT_FALSE(s.location);
+    }
+  }
+  // Both values near the truth at the end (the final refit has every effect free).
+  const Problem with = problem_with_diagnosed_effects(hidden, d);
+  EXPECT_NEAR(d.final_parameters[with.find_parameter("j.krx")], 20, 3) << report;
+  EXPECT_NEAR(d.final_parameters[with.find_parameter("top.mass_scale")], 1.1, 0.02) << report;
+  for (const char* part : {"step 1", "step 2", "+ j.krx", "+ top.mass_scale", "then"})
+    EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
+}
+
+TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
+  // The model starts with a mass scale of the top that the truth does not have (as a problem's
+  // `effects:` entry with `enable: true` would add it); the loop finds the joint's rotational
+  // stiffness, and with it in the model the mass scale explains nothing: it is dropped.
+  const Problem hidden = WithHiddenEffect({"j.krx=10"}, 15);
+  DiagnosisOptions options;
+  options.added = {make_candidate(hidden, "top.mass_scale")};
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_EQ(d.started_with.size(), 1u);
+  ASSERT_FALSE(d.steps.empty()) << report;
+  EXPECT_EQ(d.steps[0].effect.candidate.name, "j.krx") << report;
+  ASSERT_EQ(d.dropped.size(), 1u) << report;
+  EXPECT_EQ(d.dropped[0].name, "top.mass_scale");
+  EXPECT_LT(d.dropped[0].chi2_increase, d.dropped[0].critical_value);
+  ASSERT_EQ(d.effects.size(), 1u);
+  EXPECT_EQ(d.effects[0].name, "j.krx");
+  EXPECT_EQ(d.final_parameters.size(), static_cast<Eigen::Index>(hidden.parameters.size() + 1));
+  EXPECT_NE(report.find("backward  - top.mass_scale"), std::string::npos) << report;
+
+  DiagnosisOptions keep = options;
+  keep.backward = false;
+  const Diagnosis k = diagnose(hidden, hidden.initial_values(), keep);
+  EXPECT_TRUE(k.dropped.empty());
+  EXPECT_EQ(k.effects.size(), 2u);
+}
+
+TEST(Diagnosis, OneVerdictWhenOnlyTheTargetedTestRejects) {
+  // A weak rotational stiffness: spread over 102 degrees of freedom the residual passes the omnibus
+  // test, but one candidate explains far more of it than the best of 32 noise-only columns would.
+  // The verdict must be a model-form error, never "nothing needs adding" beside a significant effect.
+  const Problem hidden = WithHiddenEffect({"j.krx=0.8"}, 28);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_TRUE(d.before.test);
+  ASSERT_FALSE(d.before.test->model_form_error) << "precondition: the omnibus test does not reject\n" << report;
+  ASSERT_FALSE(d.steps.empty()) << report;
+  EXPECT_EQ(d.steps[0].effect.candidate.name, "j.krx");
+  EXPECT_TRUE(d.model_form_error);
+  EXPECT_EQ(d.recommendation.find("No model-form error"), std::string::npos) << d.recommendation;
+  EXPECT_EQ(d.recommendation.find("nothing needs adding"), std::string::npos) << d.recommendation;
 }
 
 TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {

@@ -1,8 +1,14 @@
 #pragma once
 /// \file diagnosis.hpp
-/// The model-form diagnosis loop: calibrate, test the residual against the noise
-/// (residual_test.hpp), localize it (localization.hpp), rank candidate effects (effects.hpp),
-/// refit the best, and say what to add, with the residual before and after.
+/// The model-form diagnosis loop, stepwise: calibrate, test the residual against the noise
+/// (residual_test.hpp), localize it (localization.hpp), then repeat: rank candidate effects
+/// (effects.hpp), refit the best, and accept the best when its likelihood-ratio test is
+/// significant at the stated level divided by the number of candidates screened in that step;
+/// screen again with the accepted effects in the model, until no candidate is significant or,
+/// after the first step, the residual is consistent with the noise. A backward pass then drops any
+/// accepted effect whose own likelihood-ratio test, with the others in the model, is no longer
+/// significant at the stated level. The verdict is one: a model-form error when the residual test
+/// rejects or an effect was accepted.
 ///
 /// When the measured data state their noise, every fit here minimizes the chi-square
 /// (noise_weighted()): the calibration is then a maximum-likelihood fit and the ranking's
@@ -13,7 +19,7 @@
 /// modalcal::Problem problem = modalcal::load_problem("problems/lfu-hidden/joint-rotation.yaml");
 /// modalcal::Diagnosis d = modalcal::diagnose(problem, problem.initial_values());
 /// std::cout << modalcal::format_diagnosis(problem, d);
-/// if (d.recommended >= 0) std::cout << d.ranking.effects[d.recommended].summary();
+/// for (const modalcal::DiagnosisStep& s : d.steps) std::cout << s.effect.summary() << "\n";
 /// \endcode
 
 #include <optional>
@@ -49,6 +55,15 @@ std::string format_before_after(const Problem& after_problem, const FitState& be
                                 const std::string& before_title = "before", const std::string& after_title = "after");
 
 struct DiagnosisOptions {
+  /// Effects in the model from the start, beside the problem's enabled ones (`effects:` with
+  /// `enable: true`); their values are calibrated with the parameters before the first screen.
+  std::vector<EffectCandidate> added;
+  /// At most this many effects are accepted by the forward steps. Range: >= 0 (0: screen and
+  /// refit once, accept nothing).
+  int max_steps = 4;
+  /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
+  /// significant at the stated level once the others are in the model.
+  bool backward = true;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options).
   ReducedOptions calibration = default_calibration_options();
@@ -62,6 +77,23 @@ struct DiagnosisOptions {
   static ReducedOptions default_calibration_options();
 };
 
+/// One effect accepted by a forward step of the loop.
+struct DiagnosisStep {
+  int step = 0;        ///< 1-based
+  RankedEffect effect;  ///< its refit in that step: value, standard error, X^2 after, p-value, dBIC
+  double chi2_before = 0;       ///< X^2 (or 2J without noise) before the step
+  int screened = 0;             ///< candidates screened in the step
+  double critical_value = 0;    ///< of the step's likelihood-ratio test
+  std::optional<Vec3> location;  ///< effect_location(); none for a block-wide effect
+};
+
+/// An accepted effect the backward pass removed.
+struct DroppedEffect {
+  std::string name;
+  double chi2_increase = 0;   ///< X^2 refitted without it, minus X^2 with it
+  double critical_value = 0;  ///< chi-square(1) at the significance level
+};
+
 struct Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
@@ -70,11 +102,26 @@ struct Diagnosis {
   std::string localization_note;  ///< why there is none, when there is none
   std::vector<EffectCandidate> candidates;
   EffectRanking ranking;
-  /// Index into ranking.effects of the effect to add: the first, when the residual test flags a
-  /// model-form error (or without noise) and its refit is significant; -1 otherwise.
+  /// Index into ranking.effects (the first step's ranking) of the first effect to add: 0 when the
+  /// first step accepted one, -1 otherwise.
   int recommended = -1;
-  std::optional<FitState> after;  ///< with the recommended effect
+  std::optional<FitState> after;  ///< with the accepted effects, when any
   std::string recommendation;     ///< in words
+  /// The effects the model had from the start (enabled in the problem, or options.added).
+  std::vector<EffectCandidate> started_with;
+  std::vector<DiagnosisStep> steps;       ///< forward steps, in order
+  std::vector<EffectRanking> rankings;    ///< each step's ranking (rankings[0] is `ranking`)
+  std::vector<DroppedEffect> dropped;     ///< by the backward pass
+  /// The effects kept by the backward pass: started_with's, then the accepted ones.
+  std::vector<EffectCandidate> effects;
+  /// The final parameters: the problem's, then one value per entry of `effects`.
+  Vector final_parameters;
+  FitState final_fit;  ///< the residual at the end
+  /// The one verdict: the residual test rejects before any effect is added, or an effect was
+  /// accepted (without a stated noise: an effect was accepted).
+  bool model_form_error = false;
+  /// Names of the accepted effects the backward pass kept.
+  std::vector<std::string> accepted() const;
 };
 
 /// Runs the loop on `problem` from the parameter values `start`.
@@ -85,6 +132,15 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
 /// The report: calibration, residual test, localization (first rows), ranking, recommendation
 /// and the before/after table of the recommended effect.
 std::string format_diagnosis(const Problem& problem, const Diagnosis& diagnosis);
+
+/// The stepwise loop as text: the misfit at the start, after each accepted effect (its value,
+/// standard error, place and test), the effects the backward pass dropped, and at the end.
+std::string format_steps(const Diagnosis& diagnosis);
+
+/// `problem` (unweighted) with the diagnosis's kept effects as parameters after its own, every
+/// parameter starting at the diagnosis's final value: what `calibrate` continues from.
+/// \throws std::invalid_argument if `diagnosis` was not made from `problem`.
+Problem problem_with_diagnosed_effects(const Problem& problem, const Diagnosis& diagnosis);
 
 /// 1-based rank of the effect called `name` in `ranking`, 0 if it is not ranked.
 int rank_of(const EffectRanking& ranking, const std::string& name);

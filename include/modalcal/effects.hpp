@@ -136,6 +136,12 @@ std::vector<EffectCandidate> enabled_candidates(const Problem& problem, const Ca
 Problem problem_with_effects(const Problem& problem, const std::vector<EffectCandidate>& candidates,
                              const std::vector<double>& values);
 
+/// Where `candidate` acts on `model`: the centroid of the nodes of the joint, springs or point
+/// mass it sets or adds (a joint's two nodes, a support's or node set's nodes); none for a
+/// block's property, which acts on the whole block.
+/// \throws std::invalid_argument if its change does not apply to `model`.
+std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate);
+
 struct RankingOptions {
   /// How many of the best-predicted candidates are refitted. Range: >= 0.
   int refits = 3;

@@ -110,8 +110,191 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
   if (!localization.IsValid(&inner)) return bad("localization");
   if (!candidates.IsValid(&inner)) return bad("candidates");
   if (!ranking.IsValid(&inner)) return bad("ranking");
+  if (max_steps < 0) {
+    if (error) *error = "max_steps = " + std::to_string(max_steps) + ": must be >= 0";
+    return false;
+  }
   return true;
 }
+
+namespace {
+
+/// Where the loop stands: the weighted problem with the effects so far as parameters after the
+/// problem's own, their values, and the residual there.
+struct LoopState {
+  Problem problem;
+  std::vector<EffectCandidate> effects;
+  Vector parameters;
+  FitState fit;
+};
+
+LoopState make_state(const Problem& fitted, const std::vector<EffectCandidate>& effects, const Vector& p,
+                     const ResidualTestOptions& test) {
+  const int np = static_cast<int>(fitted.parameters.size());
+  std::vector<double> values(p.data() + np, p.data() + p.size());
+  LoopState state{problem_with_effects(fitted, effects, values), effects, p, {}};
+  state.fit = evaluate_fit(state.problem, p, test);
+  return state;
+}
+
+/// Calibrates `fitted` with `effects` added, from `p` (the problem's parameters, then each
+/// effect's value); nullopt when the calibration cannot start.
+std::optional<LoopState> refit_with(const Problem& fitted, const std::vector<EffectCandidate>& effects,
+                                    const Vector& p, const DiagnosisOptions& options) {
+  const int np = static_cast<int>(fitted.parameters.size());
+  std::vector<double> values(p.data() + np, p.data() + p.size());
+  const Problem with = problem_with_effects(fitted, effects, values);
+  Objective objective(with, options.ranking.objective);
+  const ReducedSummary summary = minimize_reduced(objective, p, options.ranking.refit);
+  if (summary.final.size() != p.size()) return std::nullopt;
+  return make_state(fitted, effects, summary.final, options.test);
+}
+
+/// The effects the model has from the start, with their first-order values at the calibration
+/// (declared starts where given), calibrated with the parameters.
+LoopState starting_state(const Problem& fitted, const std::vector<EffectCandidate>& effects, const Vector& calibrated,
+                         const DiagnosisOptions& options) {
+  if (effects.empty()) return make_state(fitted, {}, calibrated, options.test);
+  RankingOptions screen = options.ranking;
+  screen.refits = 0;
+  const EffectRanking first_order = rank_effects(fitted, calibrated, effects, screen);
+  Vector p(calibrated.size() + static_cast<Eigen::Index>(effects.size()));
+  p.head(calibrated.size()) = calibrated;
+  for (size_t k = 0; k < effects.size(); ++k) {
+    const EffectCandidate& c = effects[k];
+    double start = c.variable == EffectCandidate::Variable::Compliance ? c.upper : c.screen_value;
+    for (const RankedEffect& r : first_order.effects)
+      if (r.candidate.name == c.name && r.predicted_reduction > 0) start = r.predicted_value;
+    p[calibrated.size() + static_cast<Eigen::Index>(k)] = std::clamp(c.initial.value_or(start), c.lower, c.upper);
+  }
+  std::optional<LoopState> state = refit_with(fitted, effects, p, options);
+  if (!state) throw std::runtime_error("diagnose: the calibration with the problem's effects could not start");
+  return *state;
+}
+
+void localize(const Problem& problem, const Vector& calibrated, const DiagnosisOptions& options, Diagnosis* d) {
+  if (!options.localize) {
+    d->localization_note = "localization switched off";
+  } else if (!has_shapes(problem)) {
+    d->localization_note = "no measured shapes: nothing to localize";
+  } else {
+    try {
+      d->localization = localize_model_error(problem, calibrated, options.localization);
+    } catch (const std::invalid_argument& e) {
+      d->localization_note = std::string("no localization: ") + e.what();
+    }
+  }
+}
+
+bool consistent_with_noise(const FitState& fit) { return fit.test && !fit.test->model_form_error; }
+
+/// One forward step: screens the candidates of the model as it now is and accepts the best
+/// refit when it is significant. Returns false when nothing was accepted.
+bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
+                  Diagnosis* d) {
+  const std::vector<EffectCandidate> candidates = generate_candidates(state->problem, options.candidates);
+  if (d->rankings.empty()) d->candidates = candidates;
+  d->rankings.push_back(rank_effects(state->problem, state->parameters, candidates, options.ranking));
+  const EffectRanking& ranking = d->rankings.back();
+  if (!may_accept || ranking.effects.empty() || !ranking.effects.front().refitted ||
+      !ranking.effects.front().significant)
+    return false;
+  const RankedEffect& best = ranking.effects.front();
+  DiagnosisStep step;
+  step.step = static_cast<int>(d->steps.size()) + 1;
+  step.effect = best;
+  step.chi2_before = ranking.chi2_before;
+  step.screened = ranking.screened;
+  step.critical_value = ranking.critical_value;
+  step.location = effect_location(state->problem.model, best.candidate);
+  d->steps.push_back(step);
+  std::vector<EffectCandidate> effects = state->effects;
+  effects.push_back(best.candidate);
+  *state = make_state(fitted, effects, best.parameters, options.test);
+  return true;
+}
+
+/// `state` without its effect `k`: the parameters refitted from where they are.
+std::optional<LoopState> without_effect(const Problem& fitted, const LoopState& state, size_t k,
+                                        const DiagnosisOptions& options) {
+  const int np = static_cast<int>(fitted.parameters.size());
+  std::vector<EffectCandidate> effects = state.effects;
+  effects.erase(effects.begin() + static_cast<std::ptrdiff_t>(k));
+  Vector p(state.parameters.size() - 1);
+  const Eigen::Index removed = np + static_cast<Eigen::Index>(k);
+  p << state.parameters.head(removed), state.parameters.tail(state.parameters.size() - removed - 1);
+  return refit_with(fitted, effects, p, options);
+}
+
+/// The backward pass: while the weakest effect in the model (the one whose removal raises the
+/// misfit least; the problem's own enabled effects included) is below the critical value at the
+/// stated level, it is dropped and the rest refitted.
+void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
+  const double critical = chi_square_critical_value(options.ranking.significance, 1);
+  while (!state->effects.empty()) {
+    std::optional<LoopState> weakest;
+    double weakest_increase = INFINITY;
+    std::string weakest_name;
+    for (size_t k = 0; k < state->effects.size(); ++k) {
+      std::optional<LoopState> without = without_effect(fitted, *state, k, options);
+      if (!without) continue;
+      const double increase = without->fit.statistic - state->fit.statistic;
+      // Without a stated noise the residual with every effect estimates it (an F-test).
+      const int dof = d->rankings.front().num_data - static_cast<int>(state->parameters.size());
+      const double statistic = d->noise_known ? increase : increase / (state->fit.statistic / std::max(1, dof));
+      if (statistic < weakest_increase) {
+        weakest_increase = statistic;
+        weakest_name = state->effects[k].name;
+        weakest = std::move(without);
+      }
+    }
+    if (!weakest || weakest_increase >= critical) return;
+    d->dropped.push_back({weakest_name, weakest_increase, critical});
+    *state = std::move(*weakest);
+  }
+}
+
+std::string chi2_text(bool noise_known) { return noise_known ? "chi-square" : "2J"; }
+
+std::string format_number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+std::string recommendation_text(const Diagnosis& d) {
+  char numbers[200];
+  if (d.steps.empty()) {
+    if (!d.model_form_error)
+      return "No model-form error: the calibrated residual is consistent with the stated noise and no candidate "
+             "effect explains a significant part of it; nothing needs adding.";
+    return "Model-form error, but no candidate effect explains the residual significantly: the missing physics is "
+           "not among the " +
+           std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
+  }
+  std::string text = "Model-form error. Add";
+  for (size_t k = 0; k < d.steps.size(); ++k) {
+    const DiagnosisStep& s = d.steps[k];
+    const bool dropped = std::any_of(d.dropped.begin(), d.dropped.end(),
+                                     [&](const DroppedEffect& x) { return x.name == s.effect.candidate.name; });
+    if (dropped) continue;
+    std::snprintf(numbers, sizeof numbers, " (%s %.4g -> %.4g)", chi2_text(d.noise_known).c_str(), s.chi2_before,
+                  s.effect.chi2_after);
+    text += std::string(k ? "; then " : " ") + s.effect.candidate.name + ": " + s.effect.summary() + numbers;
+  }
+  text += ". ";
+  for (const DroppedEffect& x : d.dropped) text += x.name + " was dropped again: the others explain it. ";
+  if (!d.final_fit.test)
+    text += "Without a stated noise it is not known whether anything else is missing.";
+  else if (d.final_fit.test->model_form_error)
+    text += "The residual is still larger than the noise (" + d.final_fit.test->verdict +
+            "): what remains is not among the candidates.";
+  else
+    text += "With them the residual is consistent with the noise.";
+  return text;
+}
+
+}  // namespace
 
 Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
   std::string error;
@@ -129,53 +312,37 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
     throw std::runtime_error("diagnose: the calibration could not start: " + d.calibration.message);
   const Vector& calibrated = d.calibration.final;
   d.before = evaluate_fit(fitted, calibrated, options.test);
+  localize(problem, calibrated, options, &d);
 
-  if (!options.localize) {
-    d.localization_note = "localization switched off";
-  } else if (!has_shapes(problem)) {
-    d.localization_note = "no measured shapes: nothing to localize";
-  } else {
-    try {
-      d.localization = localize_model_error(problem, calibrated, options.localization);
-    } catch (const std::invalid_argument& e) {
-      d.localization_note = std::string("no localization: ") + e.what();
-    }
+  d.started_with = enabled_candidates(problem, options.candidates);
+  d.started_with.insert(d.started_with.end(), options.added.begin(), options.added.end());
+  LoopState state = starting_state(fitted, d.started_with, calibrated, options);
+  if (!d.started_with.empty()) d.before = state.fit;
+  for (int k = 0; k < std::max(1, options.max_steps); ++k) {
+    if (k > 0 && consistent_with_noise(state.fit)) break;
+    if (!forward_step(fitted, &state, options, k < options.max_steps, &d)) break;
   }
+  d.ranking = d.rankings.front();
+  if (options.backward) backward_pass(fitted, &state, options, &d);
 
-  d.candidates = generate_candidates(fitted, options.candidates);
-  d.ranking = rank_effects(fitted, calibrated, d.candidates, options.ranking);
-
-  const bool flagged = !d.before.test || d.before.test->model_form_error;
-  const bool have_best = !d.ranking.effects.empty() && d.ranking.effects.front().refitted;
-  if (!flagged) {
-    d.recommendation =
-        "No model-form error: the calibrated residual is consistent with the stated noise; nothing "
-        "needs adding.";
-  } else if (!have_best || !d.ranking.effects.front().significant) {
-    d.recommendation =
-        "No candidate effect explains the residual significantly: the missing physics is not among "
-        "the " +
-        std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
-  } else {
+  d.effects = state.effects;
+  d.final_parameters = state.parameters;
+  d.final_fit = state.fit;
+  d.model_form_error = !d.steps.empty() || !d.before.test || d.before.test->model_form_error;
+  if (!d.steps.empty()) {
     d.recommended = 0;
-    const RankedEffect& best = d.ranking.effects.front();
-    const Problem with = problem_with_effects(fitted, {best.candidate}, {best.value});
-    d.after = evaluate_fit(with, best.parameters, options.test);
-    char numbers[200];
-    std::snprintf(numbers, sizeof numbers, " (%s %.4g -> %.4g)", d.noise_known ? "chi-square" : "2J",
-                  d.ranking.chi2_before, best.chi2_after);
-    d.recommendation = "Add " + best.candidate.name + ": " + best.summary() + numbers + ". ";
-    if (!d.after->test)
-      d.recommendation += "Without a stated noise it is not known whether anything else is missing.";
-    else if (d.after->test->model_form_error)
-      d.recommendation +=
-          "The residual is still larger than the noise: diagnose again with it added "
-          "(fullspace_calib calibrate --add " +
-          best.candidate.name + ").";
-    else
-      d.recommendation += "With it the residual is consistent with the noise.";
+    d.after = d.final_fit;
   }
+  d.recommendation = recommendation_text(d);
   return d;
+}
+
+std::vector<std::string> Diagnosis::accepted() const {
+  std::vector<std::string> names;
+  for (const EffectCandidate& c : effects)
+    if (std::any_of(steps.begin(), steps.end(), [&](const DiagnosisStep& s) { return s.effect.candidate.name == c.name; }))
+      names.push_back(c.name);
+  return names;
 }
 
 std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
@@ -191,14 +358,59 @@ std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   text += "\nresidual test: " + verdict(d.before) + "\n";
   text += "\nwhere the model fails (residual forces of the expanded measured shapes):\n";
   text += d.localization ? format_ranking(*d.localization, 5) : d.localization_note + "\n";
-  text += "\nwhich effect is missing:\n" + format_effect_ranking(d.ranking, 10);
+  text += "\nwhich effect is missing (the first step's screen):\n" + format_effect_ranking(d.ranking, 10);
+  text += "\n" + format_steps(d);
   text += "\n" + d.recommendation + "\n";
   if (d.after) {
-    const RankedEffect& best = d.ranking.effects[d.recommended];
-    const Problem with = problem_with_effects(problem, {best.candidate}, {best.value});
-    text += "\n" + format_before_after(with, d.before, *d.after, "nominal", "with effect");
+    const Problem with = problem_with_diagnosed_effects(problem, d);
+    text += "\n" + format_before_after(with, d.before, *d.after, "nominal", "with effects");
   }
   return text;
+}
+
+std::string format_steps(const Diagnosis& d) {
+  std::string text = "the stepwise loop (" + chi2_text(d.noise_known) + " after each accepted effect):\n";
+  char line[400];
+  auto fit_text = [&](const FitState& fit) {
+    char b[160];
+    if (fit.test)
+      std::snprintf(b, sizeof b, "%.4g on %d dof, p = %.3g%s", fit.statistic, fit.test->dof, fit.test->p_value,
+                    fit.test->model_form_error ? " (more than the noise)" : " (consistent with the noise)");
+    else
+      std::snprintf(b, sizeof b, "%.4g", fit.statistic);
+    return std::string(b);
+  };
+  text += "  start     " + fit_text(d.before) + "\n";
+  for (const DiagnosisStep& s : d.steps) {
+    std::string where = "block-wide";
+    if (s.location) {
+      char b[96];
+      std::snprintf(b, sizeof b, "at [%.4g, %.4g, %.4g]", (*s.location)[0], (*s.location)[1], (*s.location)[2]);
+      where = b;
+    }
+    std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (dX2 %.4g > %.4g, %d screened)\n",
+                  s.step, s.effect.candidate.name.c_str(), s.effect.value,
+                  std::isfinite(s.effect.standard_error) ? (" +/- " + format_number(s.effect.standard_error)).c_str() : "",
+                  where.c_str(), s.chi2_before, s.effect.chi2_after, s.effect.achieved_reduction, s.critical_value,
+                  s.screened);
+    text += line;
+  }
+  for (const DroppedEffect& x : d.dropped) {
+    std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n", x.name.c_str(),
+                  chi2_text(d.noise_known).c_str(), x.chi2_increase, x.critical_value);
+    text += line;
+  }
+  if (d.steps.empty()) text += "  no effect accepted\n";
+  else text += "  end       " + fit_text(d.final_fit) + "\n";
+  return text;
+}
+
+Problem problem_with_diagnosed_effects(const Problem& problem, const Diagnosis& d) {
+  const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
+  std::vector<double> values(d.final_parameters.data() + np, d.final_parameters.data() + d.final_parameters.size());
+  Problem with = problem_with_effects(problem, d.effects, values);
+  for (Eigen::Index j = 0; j < np; ++j) with.parameters[j].initial = d.final_parameters[j];
+  return with;
 }
 
 int rank_of(const EffectRanking& ranking, const std::string& name) {

@@ -456,4 +456,25 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
   return out;
 }
 
+std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate) {
+  Model changed = model;
+  ModelChange change = candidate.change;
+  if (change.kind != ModelChange::Kind::FlexibleSupport && !(change.value > 0)) change.value = candidate.reference;
+  if (change.kind == ModelChange::Kind::FlexibleSupport && !(change.value > 0 && std::isfinite(change.value)))
+    change.value = candidate.reference;
+  const std::string name = apply_model_change(&changed, change).name;
+  const std::string entity = name.substr(0, name.rfind('.'));
+  std::vector<int> nodes;
+  for (const Joint& j : changed.joints)
+    if (j.name == entity) nodes = {j.node_a, j.node_b};
+  for (const GroundSpring& g : changed.ground_springs)
+    if (g.name == entity) nodes = g.nodes;
+  for (const PointMass& m : changed.point_masses)
+    if (m.name == entity) nodes = {m.node};
+  if (nodes.empty()) return std::nullopt;  // a block's property: it acts on the whole block
+  Vec3 centroid = Vec3::Zero();
+  for (int v : nodes) centroid += changed.coordinates[v];
+  return centroid / static_cast<double>(nodes.size());
+}
+
 }  // namespace modalcal
