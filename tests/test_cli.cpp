@@ -384,6 +384,39 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_EQ(d["recommended"], "added_mass_tip.mass");
   EXPECT_EQ(RunCli("compare " + study + " --params " + dir + "/diagnose.json").exit_code, 0);  // its calibration
 
+  // The stepwise loop's record: one step with its place (the tip's nodes), the accepted list and
+  // the final residual.
+  ASSERT_EQ(d["steps"].size(), 1u) << d["steps"].dump();
+  const nlohmann::json& step = d["steps"][0];
+  for (const char* key : {"step", "name", "description", "change", "location", "value", "standard_error",
+                          "chi2_before", "chi2_after", "p_value_after", "delta_bic"})
+    EXPECT_TRUE(step.contains(key)) << key;
+  EXPECT_EQ(step["name"], "added_mass_tip.mass");
+  ASSERT_TRUE(step["location"].is_array());
+  EXPECT_NEAR(step["location"][0].get<double>(), 4, 1e-12);  // the tip is the face x = 4
+  EXPECT_EQ(d["accepted"], nlohmann::json::array({"added_mass_tip.mass"}));
+  EXPECT_EQ(d["residual_final"]["model_form_error"], false);
+  EXPECT_LT(d["residual_final"]["statistic"].get<double>(), step["chi2_before"].get<double>());
+  bool block_wide_is_null = false;
+  for (const auto& r : d["ranking"])
+    if (r["name"] == "bar.stiffness_scale" || r["name"] == "bar.mass_scale") block_wide_is_null = r["location"].is_null();
+  EXPECT_TRUE(block_wide_is_null);
+
+  // The plot, and a problem with the effect that calibrate continues from.
+  run = RunCli("diagnose " + study + " --quiet --plot " + dir + "/steps.png --write-problem " + dir + "/with.yaml");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_GT(std::filesystem::file_size(dir + "/steps.png"), 0u);
+  run = RunCli("calibrate " + dir + "/with.yaml --method reduced-lbfgs --quiet");
+  ASSERT_EQ(run.exit_code, 0) << run.output << ReadFile(dir + "/with.yaml");
+  EXPECT_NE(run.output.find("(added: mass of point mass added_mass_tip)"), std::string::npos) << run.output;
+  // ... and diagnose on it starts from the model with the effect: nothing more to add.
+  run = RunCli("diagnose " + dir + "/with.yaml --quiet --json " + dir + "/again.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json again = nlohmann::json::parse(ReadFile(dir + "/again.json"));
+  EXPECT_EQ(again["started_with"], nlohmann::json::array({"added_mass_tip.mass"}));
+  EXPECT_TRUE(again["steps"].empty()) << run.output;
+  EXPECT_EQ(again["residual_final"]["model_form_error"], false);
+
   // The engineer adds it: calibrate again with it, before and after side by side.
   run = RunCli("calibrate " + study + " --method reduced-lbfgs --quiet --add point_mass@tip:mass --json " + dir +
                "/added.json");

@@ -5,11 +5,15 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
+#include <filesystem>
 #include <iostream>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/diagnosis.hpp"
+#include "modalcal/output.hpp"
+#include "modalcal/plot.hpp"
 
 namespace modalcal::cli {
 
@@ -23,7 +27,10 @@ struct DiagnoseArgs {
   int refits = RankingOptions().refits;
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
-  std::string json, vtu;
+  int max_steps = DiagnosisOptions().max_steps;
+  bool no_backward = false;
+  std::vector<std::string> add;
+  std::string json, vtu, plot, write_problem;
   bool quiet = false;
 };
 
@@ -72,13 +79,35 @@ const char* variable_name(EffectCandidate::Variable v) {
   return "";
 }
 
+nlohmann::json location_json(const std::optional<Vec3>& location) {
+  if (!location) return nullptr;
+  return {(*location)[0], (*location)[1], (*location)[2]};
+}
+
+nlohmann::json step_json(const DiagnosisStep& s) {
+  const RankedEffect& e = s.effect;
+  return {{"step", s.step},
+          {"name", e.candidate.name},
+          {"description", e.candidate.description},
+          {"change", to_string(e.candidate.change)},
+          {"location", location_json(s.location)},
+          {"value", json_number(e.value)},
+          {"standard_error", json_number(e.standard_error)},
+          {"chi2_before", s.chi2_before},
+          {"chi2_after", json_number(e.chi2_after)},
+          {"p_value_after", json_number(e.p_value_after)},
+          {"delta_bic", json_number(e.delta_bic)},
+          {"critical_value", s.critical_value},
+          {"screened", s.screened}};
+}
+
 nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   nlohmann::json json;
   json["problem"] = problem.path;
   json["noise"] = nullptr;
   if (d.noise_known)
     json["noise"] = {{"frequency", problem.measurement_noise->frequency}, {"shape", problem.measurement_noise->shape}};
-  json["model_form_error"] = d.before.test ? d.before.test->model_form_error : true;
+  json["model_form_error"] = d.model_form_error;
   json["calibration"] = {{"status", to_string(d.calibration.termination)},
                          {"iterations", d.calibration.iterations},
                          {"forward_solves", d.calibration.forward_solves},
@@ -114,6 +143,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                                {"name", r.candidate.name},
                                {"description", r.candidate.description},
                                {"change", to_string(r.candidate.change)},
+                               {"location", location_json(effect_location(problem.model, r.candidate))},
                                {"variable", variable_name(r.candidate.variable)},
                                {"predicted_reduction", r.predicted_reduction},
                                {"predicted_value", json_number(r.predicted_value)},
@@ -126,6 +156,19 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   }
   json["set_aside"] = nlohmann::json::array();
   for (const auto& [name, why] : ranking.set_aside) json["set_aside"].push_back({{"name", name}, {"reason", why}});
+  json["steps"] = nlohmann::json::array();
+  for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
+  json["accepted"] = d.accepted();
+  json["dropped"] = nlohmann::json::array();
+  for (const DroppedEffect& x : d.dropped)
+    json["dropped"].push_back({{"name", x.name}, {"chi2_increase", x.chi2_increase}, {"critical_value", x.critical_value}});
+  json["started_with"] = nlohmann::json::array();
+  for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
+  json["residual_final"] = {{"statistic", d.final_fit.statistic},
+                            {"dof", d.final_fit.test ? nlohmann::json(d.final_fit.test->dof) : nlohmann::json()},
+                            {"p_value", d.final_fit.test ? nlohmann::json(d.final_fit.test->p_value) : nlohmann::json()},
+                            {"model_form_error", d.final_fit.test ? nlohmann::json(d.final_fit.test->model_form_error)
+                                                                  : nlohmann::json()}};
   add_hidden_effect(problem, &json);
   if (problem.synthetic_truth) {
     json["hidden_effect_rank"] = nlohmann::json::array();
@@ -133,6 +176,79 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
       json["hidden_effect_rank"].push_back({{"name", e.name}, {"rank", rank_of(ranking, e.name)}});
   }
   return json;
+}
+
+// The misfit after each step against the band noise alone gives (its dof, up to the critical
+// value), and each measured mode's frequency error before and after the loop.
+void plot_steps(const std::string& path, const Problem& problem, const Diagnosis& d, double significance) {
+  PlotPanel misfit{d.noise_known ? "chi-square" : "2J", true, {}};
+  PlotSeries chi2{"after each step", {0}, {d.before.statistic}};
+  for (const DiagnosisStep& s : d.steps) {
+    chi2.x.push_back(s.step);
+    chi2.y.push_back(s.effect.chi2_after);
+  }
+  misfit.series.push_back(chi2);
+  if (d.before.test) {
+    const double last = std::max<double>(1, static_cast<double>(d.steps.size()));
+    misfit.series.push_back({"noise alone: its dof", {0, last}, {double(d.before.test->dof), double(d.before.test->dof)}});
+    const double critical = chi_square_critical_value(significance, d.before.test->dof);
+    misfit.series.push_back({"noise alone: critical value", {0, last}, {critical, critical}});
+  }
+  PlotPanel errors{"frequency error [%]", false, {}};
+  PlotSeries before{"before", {}, {}}, after{"after", {}, {}};
+  const FitState& end = d.after ? *d.after : d.before;
+  for (const PairedMode& b : d.before.pairs)
+    for (const PairedMode& a : end.pairs)
+      if (a.measured == b.measured) {
+        before.x.push_back(b.measured + 1);
+        before.y.push_back(100 * (b.model_hz / b.measured_hz - 1));
+        after.x.push_back(a.measured + 1);
+        after.y.push_back(100 * (a.model_hz / a.measured_hz - 1));
+      }
+  errors.series = {before, after};
+  plot_panels(path, "diagnosis of " + std::filesystem::path(problem.path).filename().string(),
+              "step (left) / measured mode (right)", {misfit, errors});
+}
+
+std::string yaml_quoted(const std::string& text) { return nlohmann::json(text).dump(); }
+
+// The problem with the kept effects enabled and every parameter starting at the diagnosis's final
+// value: a file that extends the problem and replaces its parameters and effects sections.
+std::string problem_with_effects_yaml(const Problem& problem, const std::string& out_path, const Diagnosis& d) {
+  const std::filesystem::path out_dir = std::filesystem::absolute(out_path).parent_path();
+  std::string text = "# Written by fullspace_calib diagnose: " + problem.path +
+                     " with the effects the diagnosis kept\n# enabled, every parameter starting at its "
+                     "diagnosed value. `fullspace_calib calibrate` on this file\n# calibrates the effects "
+                     "with the parameters.\n";
+  text += "extends: " + yaml_quoted(std::filesystem::relative(std::filesystem::absolute(problem.path), out_dir).string()) + "\n";
+  text += "parameters:\n";
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    std::string targets;
+    for (PropertyId id : q.targets) targets += (targets.empty() ? "" : ", ") + yaml_quoted(problem.model.properties[id].name);
+    text += "  " + yaml_quoted(q.name) + ": {targets: [" + targets + "], initial: " +
+            format_round_trip(std::clamp(d.final_parameters[j], q.lower, q.upper)) + ", lower: " + format_round_trip(q.lower) +
+            ", upper: " + format_round_trip(q.upper) + ", scaling: " + to_string(q.scaling) +
+            (q.scaling == Scaling::Linear ? ", reference: " + format_round_trip(q.reference) : "") +
+            (q.truth ? ", truth: " + format_round_trip(*q.truth) : "") + "}\n";
+  }
+  text += "effects:\n";
+  const size_t np = problem.parameters.size();
+  for (size_t k = 0; k < d.effects.size(); ++k) {
+    const EffectCandidate& c = d.effects[k];
+    std::string change = to_string(c.change);
+    change = change.substr(0, change.rfind('='));  // an effect is a change without its value
+    const double value = std::clamp(d.final_parameters[static_cast<Eigen::Index>(np + k)], c.lower, c.upper);
+    text += "  - {effect: " + yaml_quoted(change) + ", description: " + yaml_quoted(c.description) +
+            ", initial: " + format_round_trip(value) + ", lower: " + format_round_trip(c.lower) +
+            ", upper: " + format_round_trip(c.upper) + ", enable: true}\n";
+  }
+  for (const DeclaredEffect& e : problem.effects)
+    if (!e.enable && std::none_of(d.effects.begin(), d.effects.end(), [&](const EffectCandidate& c) {
+          return c.name == make_candidate(problem, e.effect).name;
+        }))
+      text += "  - {effect: " + yaml_quoted(e.effect) + ", description: " + yaml_quoted(e.description) + "}\n";
+  return text;
 }
 
 int run_diagnose(const DiagnoseArgs& args) {
@@ -144,6 +260,8 @@ int run_diagnose(const DiagnoseArgs& args) {
   options.ranking.refits = args.refits;
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
+  options.max_steps = args.max_steps;
+  options.backward = !args.no_backward;
   if (!args.quiet) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
@@ -158,6 +276,13 @@ int run_diagnose(const DiagnoseArgs& args) {
               problem.measured.size(),
               problem.measurement_noise ? "" : "; no stated noise (measured: noise:), so no chi-square test");
   std::fflush(stdout);
+  for (const std::string& text : args.add) {
+    try {
+      options.added.push_back(make_candidate(problem, text));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--add: ") + e.what());
+    }
+  }
   const Diagnosis d = diagnose(problem, start, options);
   std::fputs(format_diagnosis(problem, d).c_str(), stdout);
   const std::string hidden = hidden_effect_text(problem);
@@ -170,6 +295,15 @@ int run_diagnose(const DiagnoseArgs& args) {
     }
   }
   write_json(args.json, to_json(problem, d), problem);
+  if (!args.plot.empty()) {
+    plot_steps(args.plot, problem, d, args.significance);
+    std::printf("wrote %s\n", args.plot.c_str());
+  }
+  if (!args.write_problem.empty()) {
+    write_file_atomically(args.write_problem, problem_with_effects_yaml(problem, args.write_problem, d),
+                          {problem.path});
+    std::printf("wrote %s: the problem with the effects the diagnosis kept, for calibrate\n", args.write_problem.c_str());
+  }
   if (!args.vtu.empty() && d.localization) {
     const ParametricSystem system(problem.model, problem.parameter_targets());
     for (const std::string& path : write_vtu_set(args.vtu, "diagnose", problem, system, d.calibration.final,
@@ -200,7 +334,20 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(CLI::Range(1e-12, 0.5));
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-steps", args->max_steps,
+                  "accept at most this many effects, one per step (default 4; 0: screen and refit only)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--no-backward", args->no_backward,
+                "keep every accepted effect (no backward pass dropping those the others explain)");
+  cmd->add_option("--add", args->add,
+                  "start from the model with this effect, e.g. joint2.kry or point_mass@top:mass (repeatable)");
   cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file");
+  cmd->add_option("--plot", args->plot,
+                  "plot the chi-square per step against the noise band, and each mode's frequency error before "
+                  "and after (.png or .svg)");
+  cmd->add_option("--write-problem", args->write_problem,
+                  "write the problem with the kept effects enabled and the final values as starts (YAML), for "
+                  "calibrate");
   cmd->add_option("--vtu", args->vtu,
                   "write the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this directory");
   cmd->add_flag("--quiet", args->quiet, "no progress lines");

@@ -353,6 +353,25 @@ ModelChange parse_effect_text(const std::string& text, std::optional<double>* va
   return change;
 }
 
+/// Whether a declared effect is already in the model as a calibration parameter's target (an
+/// effect a diagnosis accepted, or one enabled and added): it is then no longer a candidate.
+bool already_a_parameter(const Problem& problem, const std::string& text) {
+  std::string name = text.substr(0, text.rfind('=') == std::string::npos ? text.size() : text.rfind('='));
+  name = name.substr(0, name.find_last_not_of(" \t") + 1);
+  if (name.find('@') != std::string::npos) {
+    try {
+      std::optional<double> value;
+      name = describe_model_change(problem.model, parse_effect_text(text, &value)).name;
+    } catch (const std::invalid_argument&) {
+      return false;  // make_candidate says why
+    }
+  }
+  for (const Parameter& q : problem.parameters)
+    for (PropertyId t : q.targets)
+      if (problem.model.properties[t].name == name) return true;
+  return false;
+}
+
 }  // namespace
 
 bool CandidateOptions::IsValid(std::string* error) const {
@@ -372,6 +391,7 @@ std::vector<EffectCandidate> generate_candidates(const Problem& problem, const C
   const CandidateFactory factory(problem, options);
   std::vector<EffectCandidate> candidates = factory.automatic();
   for (const DeclaredEffect& d : problem.effects) {
+    if (already_a_parameter(problem, d.effect)) continue;
     EffectCandidate c = make_candidate(problem, d.effect, options);
     if (!d.description.empty()) c.description = d.description;
     if (d.initial) c.initial = d.initial;
@@ -469,8 +489,8 @@ std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& c
     if (j.name == entity) nodes = {j.node_a, j.node_b};
   for (const GroundSpring& g : changed.ground_springs)
     if (g.name == entity) nodes = g.nodes;
-  for (const PointMass& m : changed.point_masses)
-    if (m.name == entity) nodes = {m.node};
+  for (const PointMass& m : changed.point_masses)  // on a node set: one part per node, "<entity> (node N)"
+    if (m.name == entity || m.name.rfind(entity + " (node ", 0) == 0) nodes.push_back(m.node);
   if (nodes.empty()) return std::nullopt;  // a block's property: it acts on the whole block
   Vec3 centroid = Vec3::Zero();
   for (int v : nodes) centroid += changed.coordinates[v];
