@@ -142,7 +142,7 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   // Switched off by the options.
   CandidateOptions only_blocks;
   only_blocks.joints = only_blocks.node_sets = only_blocks.supports = only_blocks.sensor_masses =
-      only_blocks.between_parts = false;
+      only_blocks.between_parts = only_blocks.spatial = false;
   EXPECT_EQ(generate_candidates(problem, only_blocks).size(), 6u);  // three blocks, two scales each
 }
 
@@ -348,6 +348,27 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
   EXPECT_NEAR(d.final_parameters[with.find_parameter("top.mass_scale")], 1.1, 0.02) << report;
   for (const char* part : {"step 1", "step 2", "+ j.krx", "+ top.mass_scale", "then"})
     EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
+}
+
+TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
+  // A mass on the base's top face, two element sizes from the nearest sensor and on no node set:
+  // no listed candidate is there, but the spatial family has a point mass at every surface node.
+  const Problem hidden = WithHiddenEffect({"point_mass@[1,0.5,1.5]:mass=0.08"}, 31);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_FALSE(d.steps.empty()) << report;
+  const DiagnosisStep& first = d.steps[0];
+  EXPECT_EQ(first.effect.candidate.change.kind, ModelChange::Kind::AddPointMass) << report;
+  ASSERT_TRUE(first.location) << report;
+  const double element_size = 0.5;
+  EXPECT_LT((*first.location - Vec3(1, 0.5, 1.5)).norm(), 2 * element_size + 1e-9) << report;
+  EXPECT_NEAR(first.effect.value, 0.08, 0.02) << report;
+  ASSERT_TRUE(d.final_fit.test);
+  EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
+  // Every free surface node carries one: many more candidates than the listed families.
+  CandidateOptions listed;
+  listed.spatial = false;
+  EXPECT_GT(d.ranking.screened, 3 * static_cast<int>(generate_candidates(hidden, listed).size()));
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {

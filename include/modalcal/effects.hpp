@@ -19,6 +19,8 @@
 /// | each fixed node set | support flexibility per direction (`support@SET:kx`) | compliance | [k_ref/1000, k₀] |
 /// | each sensor node | an added point mass (a sensor's or cable's mass loading) | linear from 0 | [0, m_ref / 2] |
 /// | blocks sharing no node, < 2 elements apart | a joint along x, y, z at nearest nodes | from 0 | [0, 100 k_ref] |
+/// | every free node of a surface or interface (spatial) | an added point mass | linear from 0 | [0, m_ref / 2] |
+/// | | a spring to ground along each free direction | linear from 0 | [0, 100 k_ref] |
 ///
 /// k_ref is the stiffness of a node in the adjoining block, \f$E h\f$ (E Young's modulus, h the
 /// element size), or for a joint's absent rotational component its translational stiffness (the
@@ -88,6 +90,12 @@ struct EffectCandidate {
   double lower = 0, upper = 0;    ///< bounds of the value, lower < upper
   std::optional<double> initial;  ///< a declared start (else the first-order estimate)
   bool declared = false;          ///< from the problem file's `effects:` or the command line
+  /// Where it acts: the centroid of its nodes (none for a block's property, which acts on the
+  /// whole block).
+  std::optional<Vec3> location;
+  /// Two candidates of one kind (change kind and property) closer than this are neighbours: the
+  /// refits take the best of each group (two element sizes at its nodes).
+  double neighbourhood = 0;
 };
 
 /// Which automatic candidates to generate (all by default).
@@ -98,6 +106,9 @@ struct CandidateOptions {
   bool supports = true;       ///< flexibility of each fixed node set, per fixed component
   bool sensor_masses = true;  ///< an added mass at each sensor node
   bool between_parts = true;  ///< springs between blocks that share no node but nearly touch
+  /// A point mass and springs to ground along x, y and z at every free node of the model's
+  /// surfaces and of the interfaces between its blocks: effects outside any list of parts.
+  bool spatial = true;
   /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;

@@ -106,6 +106,72 @@ std::vector<std::array<bool, 6>> fixed_dofs(const Model& model) {
 std::string node_set_place(const NodeSet& set) { return set.name; }
 std::string node_place(const Model& model, int v) { return "#" + std::to_string(model.node_ids[v]); }
 
+const Joint* find_joint(const Model& model, const std::string& name) {
+  for (const Joint& j : model.joints)
+    if (j.name == name) return &j;
+  return nullptr;
+}
+
+/// The nodes an entity of `model` acts on (a block: all of its nodes; a point mass added on a
+/// node set: one part per node, "<entity> (node N)").
+std::vector<int> nodes_of(const Model& model, const std::string& entity) {
+  for (const ElementBlock& b : model.blocks)
+    if (b.name == entity) {
+      std::set<int> unique(b.connectivity.begin(), b.connectivity.end());
+      return {unique.begin(), unique.end()};
+    }
+  if (const Joint* j = find_joint(model, entity)) return {j->node_a, j->node_b};
+  for (const GroundSpring& g : model.ground_springs)
+    if (g.name == entity) return g.nodes;
+  std::vector<int> nodes;
+  for (const PointMass& m : model.point_masses)
+    if (m.name == entity || m.name.rfind(entity + " (node ", 0) == 0) nodes.push_back(m.node);
+  return nodes;
+}
+
+bool is_block(const Model& model, const std::string& entity) {
+  return std::any_of(model.blocks.begin(), model.blocks.end(), [&](const ElementBlock& b) { return b.name == entity; });
+}
+
+std::optional<Vec3> centroid(const Model& model, const std::vector<int>& nodes) {
+  if (nodes.empty()) return std::nullopt;
+  Vec3 sum = Vec3::Zero();
+  for (int v : nodes) sum += model.coordinates[v];
+  return Vec3(sum / static_cast<double>(nodes.size()));
+}
+
+/// The free nodes on the model's surfaces (element sides no other element shares) and on the
+/// interfaces between blocks (nodes of two or more blocks), in index order.
+std::vector<int> surface_and_interface_nodes(const Model& model, const std::vector<std::array<bool, 6>>& fixed) {
+  std::map<std::vector<int>, int> side_count;
+  std::vector<int> blocks_of_node(model.num_nodes(), -1);
+  std::vector<bool> chosen(model.num_nodes(), false);
+  for (size_t b = 0; b < model.blocks.size(); ++b) {
+    const ElementBlock& block = model.blocks[b];
+    const int npe = nodes_per_element(block.type);
+    for (int e = 0; e < block.num_elements(); ++e) {
+      for (int k = 0; k < npe; ++k) {
+        const int v = block.connectivity[e * npe + k];
+        if (blocks_of_node[v] >= 0 && blocks_of_node[v] != static_cast<int>(b)) chosen[v] = true;  // an interface
+        blocks_of_node[v] = static_cast<int>(b);
+      }
+      for (int side = 1; side <= num_solid_sides(block.type); ++side) {
+        std::vector<int> key;
+        for (int k : solid_side_nodes(block.type, side)) key.push_back(block.connectivity[e * npe + k]);
+        std::sort(key.begin(), key.end());
+        ++side_count[key];
+      }
+    }
+  }
+  for (const auto& [nodes, count] : side_count)
+    if (count == 1)
+      for (int v : nodes) chosen[v] = true;
+  std::vector<int> out;
+  for (int v = 0; v < model.num_nodes(); ++v)
+    if (chosen[v] && !(fixed[v][0] && fixed[v][1] && fixed[v][2])) out.push_back(v);
+  return out;
+}
+
 /// Turns model changes (their values ignored) into candidates with the rules of effects.hpp.
 class CandidateFactory {
  public:
@@ -148,6 +214,8 @@ class CandidateFactory {
         component >= 3 || (change.kind == ModelChange::Kind::AddPointMass && change.property != "mass");
     const double h = scales_.element_size(nodes);
     const double length_squared = rotational ? h * h : 1;
+    if (!is_block(changed, entity)) c.location = centroid(changed, nodes);
+    c.neighbourhood = 2 * h;
 
     if (change.kind == ModelChange::Kind::FlexibleSupport) {
       const double k_ref = scales_.node_stiffness(nodes) * length_squared;
@@ -254,6 +322,12 @@ class CandidateFactory {
           add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
     }
     if (options_.between_parts) append_between_parts(fixed, &changes);
+    if (options_.spatial)
+      for (int v : surface_and_interface_nodes(model_, fixed)) {
+        add("point_mass@" + node_place(model_, v) + ":mass", "on a surface or interface");
+        for (int c = 0; c < 3; ++c)
+          if (!fixed[v][c]) add("spring@" + node_place(model_, v) + ":" + kStiffnessComponentNames[c]);
+      }
 
     std::vector<EffectCandidate> out;
     std::set<std::string> names;
@@ -314,27 +388,8 @@ class CandidateFactory {
       }
   }
 
-  /// The nodes an entity of `model` acts on.
-  static std::vector<int> nodes_of(const Model& model, const std::string& entity) {
-    for (const ElementBlock& b : model.blocks)
-      if (b.name == entity) {
-        std::set<int> unique(b.connectivity.begin(), b.connectivity.end());
-        return {unique.begin(), unique.end()};
-      }
-    if (const Joint* j = find_joint(model, entity)) return {j->node_a, j->node_b};
-    for (const GroundSpring& s : model.ground_springs)
-      if (s.name == entity) return s.nodes;
-    std::vector<int> nodes;
-    for (const PointMass& m : model.point_masses)
-      if (m.name == entity || m.name.rfind(entity + " (node ", 0) == 0) nodes.push_back(m.node);
-    return nodes;
-  }
-  static const Joint* find_joint(const Model& model, const std::string& name) {
-    for (const Joint& j : model.joints)
-      if (j.name == name) return &j;
-    return nullptr;
-  }
   const Joint* model_joint(const std::string& name) const { return find_joint(model_, name); }
+
 
   const Problem& problem_;
   const Model& model_;
@@ -477,24 +532,14 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
 }
 
 std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate) {
+  if (candidate.location) return candidate.location;
   Model changed = model;
   ModelChange change = candidate.change;
-  if (change.kind != ModelChange::Kind::FlexibleSupport && !(change.value > 0)) change.value = candidate.reference;
-  if (change.kind == ModelChange::Kind::FlexibleSupport && !(change.value > 0 && std::isfinite(change.value)))
-    change.value = candidate.reference;
+  if (!(change.value > 0 && std::isfinite(change.value))) change.value = candidate.reference;
   const std::string name = apply_model_change(&changed, change).name;
   const std::string entity = name.substr(0, name.rfind('.'));
-  std::vector<int> nodes;
-  for (const Joint& j : changed.joints)
-    if (j.name == entity) nodes = {j.node_a, j.node_b};
-  for (const GroundSpring& g : changed.ground_springs)
-    if (g.name == entity) nodes = g.nodes;
-  for (const PointMass& m : changed.point_masses)  // on a node set: one part per node, "<entity> (node N)"
-    if (m.name == entity || m.name.rfind(entity + " (node ", 0) == 0) nodes.push_back(m.node);
-  if (nodes.empty()) return std::nullopt;  // a block's property: it acts on the whole block
-  Vec3 centroid = Vec3::Zero();
-  for (int v : nodes) centroid += changed.coordinates[v];
-  return centroid / static_cast<double>(nodes.size());
+  if (is_block(changed, entity)) return std::nullopt;  // it acts on the whole block
+  return centroid(changed, nodes_of(changed, entity));
 }
 
 }  // namespace modalcal

@@ -93,6 +93,25 @@ std::string format_value(double v) {
   return buffer;
 }
 
+/// Candidates of one kind (change kind and property) whose places lie within the larger of
+/// their neighbourhoods: one effect seen from two neighbouring nodes.
+bool neighbours(const EffectCandidate& a, const EffectCandidate& b) {
+  if (!a.location || !b.location || a.change.kind != b.change.kind || a.change.property != b.change.property)
+    return false;
+  return (*a.location - *b.location).norm() < std::max(a.neighbourhood, b.neighbourhood);
+}
+
+/// The `refits` best predictions, at most one of each group of neighbours (the best of it), in
+/// `screened`'s order of prediction.
+std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int refits) {
+  std::vector<size_t> chosen;
+  for (size_t k = 0; k < screened.size() && static_cast<int>(chosen.size()) < refits; ++k)
+    if (std::none_of(chosen.begin(), chosen.end(),
+                     [&](size_t c) { return neighbours(screened[c].candidate, screened[k].candidate); }))
+      chosen.push_back(k);
+  return chosen;
+}
+
 }  // namespace
 
 ReducedOptions RankingOptions::default_refit_options() {
@@ -293,7 +312,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
   ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
-  for (int k = 0; k < std::min<int>(options.refits, static_cast<int>(screened.size())); ++k) {
+  for (size_t k : refit_choices(screened, options.refits)) {
     RankedEffect& ranked = screened[k];
     if (!(ranked.predicted_reduction > 0) && !ranked.candidate.initial) continue;
     const EffectCandidate& c = ranked.candidate;
