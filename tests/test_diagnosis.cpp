@@ -414,6 +414,39 @@ TEST(Diagnosis, OneVerdictWhenOnlyTheTargetedTestRejects) {
   EXPECT_EQ(d.recommendation.find("nothing needs adding"), std::string::npos) << d.recommendation;
 }
 
+TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
+  // The data come from the assembly itself on a mesh twice as fine: the nominal model form is
+  // right, only its mesh is coarse. The estimate on a mesh 1.5 times finer must say so, and the
+  // loop, run on the frequencies corrected by it, must accept no physical effect.
+  Problem problem = LoadAssembly();
+  const Problem fine_truth = load_problem(WriteTempFile("fine.yaml", kAssembly), LoadOptions{2.0});
+  SynthesisOptions synthesis;
+  synthesis.modes = problem.synthetic->modes;
+  synthesis.noise = {0.002, 0.02, 41};
+  const MeasuredData data =
+      synthesize_measured_data(fine_truth, make_truth(fine_truth, nullptr, {}), fine_truth.sensors, synthesis);
+  problem.measured = data.modes;
+  problem.synthetic.reset();
+  problem.measurement_noise = data.noise;
+  Problem finer = load_problem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
+  finer.measured = problem.measured;
+  finer.synthetic.reset();
+  finer.measurement_noise = problem.measurement_noise;
+  DiagnosisOptions options;
+  options.finer_mesh = &finer;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
+  const std::string report = format_diagnosis(problem, d);
+  ASSERT_TRUE(d.discretization) << report;
+  EXPECT_EQ(d.discretization->per_mode.size(), problem.measured.size());
+  EXPECT_GT(d.discretization->refinement, 1.3);
+  EXPECT_TRUE(d.discretization->significant) << report;
+  EXPECT_TRUE(d.discretization->corrected);
+  for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
+    EXPECT_LT(m.shift_percent, 0) << m.label << ": a finer mesh is more flexible\n" << report;
+  EXPECT_TRUE(d.steps.empty()) << report;
+  EXPECT_NE(d.recommendation.find("Refine the mesh first"), std::string::npos) << d.recommendation;
+}
+
 TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {
   Problem problem = WithHiddenEffect({"j.krx=20"}, 5);
   problem.measurement_noise.reset();

@@ -61,6 +61,14 @@ struct DiagnosisOptions {
   /// At most this many effects are accepted by the forward steps. Range: >= 0 (0: screen and
   /// refit once, accept nothing).
   int max_steps = 4;
+  /// The same problem on a finer mesh (same parameters and measured modes), for the
+  /// discretization estimate; null: no estimate. The caller loads it (e.g. load_problem with
+  /// LoadOptions::refinement 1.5 times the problem's mesh_refinement).
+  const Problem* finer_mesh = nullptr;
+  /// When the mesh explains a significant part of the residual, run the loop on the data corrected
+  /// for it (DiscretizationEstimate), so that no physical effect is accepted for what the mesh
+  /// accounts for.
+  bool correct_for_discretization = true;
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
   /// significant at the stated level once the others are in the model.
   bool backward = true;
@@ -87,6 +95,31 @@ struct DiagnosisStep {
   std::optional<Vec3> location;  ///< effect_location(); none for a block-wide effect
 };
 
+/// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated
+/// parameters; each measured frequency is moved by its mode's relative change on the finer mesh
+/// (what this mesh would show of it) and the parameters are recalibrated: the chi-square this
+/// gains, with no free parameter added, tests "the residual is the mesh's". When it is
+/// significant the loop runs on the moved data, with the part extrapolation says even the finer
+/// mesh misses (r²/(r² − 1) − 1 times the change, for a frequency error of order h², r the
+/// ratio of element sizes from the DOF counts as (n_fine/n)^(1/3)) allowed as model error in
+/// each frequency (MeasuredMode::model_error). Shapes are left as they are.
+struct DiscretizationEstimate {
+  struct Mode {
+    int measured = 0;  ///< 0-based
+    std::string label;
+    double shift_percent = 0;         ///< (finer mesh - this mesh) / this mesh, in %
+    double extrapolated_percent = 0;  ///< (continuum - this mesh) / this mesh by extrapolation, in %
+  };
+  double refinement = 0;  ///< r, the element-size ratio of the two meshes
+  int dofs = 0, finer_dofs = 0;
+  std::vector<Mode> per_mode;
+  /// X^2 at the calibration minus X^2 of the recalibration on the moved data.
+  double chi2_explained = 0;
+  double critical_value = 0;  ///< chi-square(1) at the significance level
+  bool significant = false;   ///< chi2_explained above it: refine the mesh first
+  bool corrected = false;     ///< the loop ran on the corrected data
+};
+
 /// An accepted effect the backward pass removed.
 struct DroppedEffect {
   std::string name;
@@ -98,6 +131,7 @@ struct Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
   FitState before;             ///< at its result
+  std::optional<DiscretizationEstimate> discretization;  ///< with options.finer_mesh
   std::optional<Localization> localization;
   std::string localization_note;  ///< why there is none, when there is none
   std::vector<EffectCandidate> candidates;
@@ -132,6 +166,9 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
 /// The report: calibration, residual test, localization (first rows), ranking, recommendation
 /// and the before/after table of the recommended effect.
 std::string format_diagnosis(const Problem& problem, const Diagnosis& diagnosis);
+
+/// The discretization estimate as text: each mode's estimated error and the chi-square it explains.
+std::string format_discretization(const DiscretizationEstimate& estimate);
 
 /// The stepwise loop as text: the misfit at the start, after each accepted effect (its value,
 /// standard error, place and test), the effects the backward pass dropped, and at the end.

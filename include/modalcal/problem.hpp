@@ -59,6 +59,10 @@ struct MeasuredMode {
   double shape_weight = 1;    ///< kappa_i of the shape term; 0 switches it off
   Vector shape;               ///< at Problem::sensors, empty if not measured
   PairingRule pairing;
+  /// An allowance for model error in this mode's frequency, as a relative standard deviation:
+  /// the chi-square test and the noise weights add it in quadrature to the stated frequency
+  /// noise (residual_test.hpp). The diagnosis sets it from its discretization estimate. >= 0.
+  double model_error = 0;
   int source_line = 0;        ///< line in the problem file, for messages
   /// Whether J has a shape term for this mode: a measured shape with a positive weight. (A shape
   /// with weight 0 still pairs the mode by MAC.)
@@ -147,6 +151,9 @@ struct Problem {
   std::optional<MeasurementNoise> measurement_noise;
   /// `effects:`: candidate effects declared for the diagnosis, in file order.
   std::vector<DeclaredEffect> effects;
+  /// The refinement factor a generated mesh was made with (`mesh: refinement`, or
+  /// LoadOptions::refinement); 0 for a mesh read from a file, which cannot be refined.
+  double mesh_refinement = 0;
 
   std::vector<std::vector<PropertyId>> parameter_targets() const;
   Vector initial_values() const;

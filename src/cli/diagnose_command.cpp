@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -28,6 +29,7 @@ struct DiagnoseArgs {
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
+  double mesh_check = 1.5;
   bool no_backward = false;
   std::vector<std::string> add;
   std::string json, vtu, plot, write_problem;
@@ -156,6 +158,20 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   }
   json["set_aside"] = nlohmann::json::array();
   for (const auto& [name, why] : ranking.set_aside) json["set_aside"].push_back({{"name", name}, {"reason", why}});
+  json["discretization"] = nullptr;
+  if (d.discretization) {
+    nlohmann::json modes = nlohmann::json::array();
+    for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
+      modes.push_back({{"label", m.label}, {"measured", m.measured + 1}, {"shift_percent", m.shift_percent}});
+    json["discretization"] = {{"refinement", d.discretization->refinement},
+                              {"dofs", d.discretization->dofs},
+                              {"finer_dofs", d.discretization->finer_dofs},
+                              {"per_mode", modes},
+                              {"chi2_explained", d.discretization->chi2_explained},
+                              {"critical_value", d.discretization->critical_value},
+                              {"significant", d.discretization->significant},
+                              {"corrected", d.discretization->corrected}};
+  }
   json["steps"] = nlohmann::json::array();
   for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
   json["accepted"] = d.accepted();
@@ -283,6 +299,19 @@ int run_diagnose(const DiagnoseArgs& args) {
       throw InputError(std::string("--add: ") + e.what());
     }
   }
+  // The same problem on a mesh `mesh_check` times finer, for the discretization estimate.
+  std::optional<Problem> finer;
+  if (args.mesh_check > 0 && problem.mesh_refinement > 0) {
+    try {
+      finer = load_problem(args.problem, LoadOptions{problem.mesh_refinement * args.mesh_check});
+      options.finer_mesh = &*finer;
+    } catch (const ProblemError& e) {  // e.g. sensors on a node set, which has more nodes there
+      std::printf("no discretization estimate: on a mesh %g times finer the problem does not load: %s\n",
+                  args.mesh_check, e.what());
+    }
+  } else if (args.mesh_check > 0) {
+    std::printf("no discretization estimate: the mesh comes from a file, which cannot be refined here\n");
+  }
   const Diagnosis d = diagnose(problem, start, options);
   std::fputs(format_diagnosis(problem, d).c_str(), stdout);
   const std::string hidden = hidden_effect_text(problem);
@@ -337,6 +366,10 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--max-steps", args->max_steps,
                   "accept at most this many effects, one per step (default 4; 0: screen and refit only)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--mesh-check", args->mesh_check,
+                  "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
+                  "no estimate)")
+      ->check(CLI::Range(0.0, 4.0));
   cmd->add_flag("--no-backward", args->no_backward,
                 "keep every accepted effect (no backward pass dropping those the others explain)");
   cmd->add_option("--add", args->add,

@@ -51,6 +51,12 @@ std::string percent(double x) {
   return s.str();
 }
 
+/// The relative variance of a measured frequency: the stated noise and the mode's allowance for
+/// model error, independent.
+double frequency_variance(const MeasurementNoise& noise, const MeasuredMode& mode) {
+  return noise.frequency * noise.frequency + mode.model_error * mode.model_error;
+}
+
 }  // namespace
 
 bool ResidualTestOptions::IsValid(std::string* error) const {
@@ -89,7 +95,7 @@ Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise) {
     throw std::invalid_argument("noise_weighted: the frequency noise must be > 0 (state it under measured: noise:)");
   Problem weighted = problem;
   for (MeasuredMode& m : weighted.measured) {
-    if (m.weight > 0) m.weight = 1 / (4 * noise.frequency * noise.frequency);
+    if (m.weight > 0) m.weight = 1 / (4 * frequency_variance(noise, m));
     if (m.has_shape_term() && noise.shape > 0) {
       const double sigma = noise.shape * m.shape.cwiseAbs().maxCoeff();
       m.shape_weight = m.shape.squaredNorm() / (sigma * sigma);
@@ -118,7 +124,7 @@ ResidualTest test_residual(const Objective& objective, const Evaluation& evaluat
     m.model = pair.model;
     m.frequency_error = (pair.model_hz - pair.measured_hz) / pair.measured_hz;
     if (measured.weight > 0) {
-      m.frequency_chi2 = std::pow(m.frequency_error / noise.frequency, 2);
+      m.frequency_chi2 = m.frequency_error * m.frequency_error / frequency_variance(noise, measured);
       m.dof += 1;
     }
     const bool shape_tested = measured.has_shape_term() && measured.shape.size() > 1 && noise.shape > 0 && pair.mac >= 0;

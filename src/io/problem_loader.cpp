@@ -477,6 +477,7 @@ void Loader::read_box_mesh(const Fields& fs) {
   const Field* file_refinement = fs.find("refinement");
   double refinement = file_refinement ? positive(*file_refinement) : 1.0;
   if (options_.refinement > 0) refinement = options_.refinement;
+  problem_.mesh_refinement = refinement;
 
   const Field& boxes_field = required(fs, "boxes");
   std::vector<detail::MeshBox> boxes;
