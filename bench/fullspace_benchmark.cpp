@@ -46,18 +46,7 @@
 // "print_timing_statistics yes" adds the per-component breakdown (LinearSystemFactorization,
 // symbolic factorization, back solves, function evaluations).
 //
-// Measured in session 6 (README, Benchmarks): the block solver at 1.39x reduced L-BFGS at 13,764
-// DOFs, 1.35x at 31,143 and 2.37x at 133,794 (1.62x to parameter error 1e-8), 11 GB there; Ipopt
-// 5.9x at 13,764. Session 4, Ipopt only (2 shared cores, load
-// average 4-10, so wall times are ~1.7x the CPU times): at
-// 13,764 DOFs and 4 modes (55,065 unknowns, 3.8M Jacobian and 2.0M Hessian nonzeros) full space
-// converged in 4 Ipopt + 7 globalization iterations at ~40 s per Ipopt iteration, 7-9x the
-// reduced L-BFGS time to the same 2.5e-11 parameter error. Of Ipopt's 98 CPU s, ~92 were the
-// four MUMPS numeric factorizations (StdAugSystemSolverMultiSolve less symbolic factorization
-// 1.8 s and back solves 1.4 s), function evaluations 0.6 s; no inertia corrections (lg(rg) "-"
-// throughout). Peak RSS 1.6 GB against 0.16 GB for reduced. At 31,143 DOFs full space timed
-// out at 900 s wall (~8 CPU minutes, 4.7 GB resident peak) where reduced took 79 s; at 133,794
-// DOFs it was still in its first Ipopt iteration at 420 s (7.2 GB).
+// Measured results, each with its date, commit and command line: docs/benchmarks.md.
 //
 // Usage: fullspace_benchmark --help
 

@@ -1,14 +1,14 @@
-// Example 4: which physics is the model missing? The model-form diagnosis loop on a case whose
+// Example 6: which physics is the model missing? The model-form diagnosis loop on a case whose
 // measured modes come from a truth model with a point mass the nominal model lacks.
 //
 // Shows: calibrating (in the chi-square metric of the stated noise), the test-analysis comparison
 // at the calibrated values, the residual's chi-square test flagging a model-form error, where
 // the residual forces of the expanded shapes point, the ranking of candidate effects (first-order
 // screen of all, refits of the best), and the recalibration with the best effect, before and
-// after per mode. The steps are what `fullspace_calib diagnose` runs (README: "Finding the
-// missing physics").
+// after per mode. The steps are what `fullspace_calib diagnose` runs (docs/design.md:
+// "Diagnosis: which physics is missing").
 //
-// Run:   build/bin/example_04_model_form_diagnosis [problem.yaml]
+// Run:   build/bin/example_06_model_form_diagnosis [problem.yaml]
 //        (default: problems/lfu-hidden/top-mass.yaml; takes about a minute)
 
 #include <cstdio>

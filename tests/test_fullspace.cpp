@@ -231,7 +231,7 @@ TEST(FullSpace, EigenvaluesFirstAvoidsALocalMinimumOfTheShapeTerms) {
 
 TEST(FullSpace, EscapesFromAMinimumWhereTheMacPairsCross) {
   // LFU (refinement 0.7, 9,288 DOFs) near the minimum that two of the 21 study starts on its own
-  // mesh ended in (README): J = 0.40, measured modes 3 and 4 on model modes 4 and 3. Without the
+  // mesh ended in (docs/studies.md): J = 0.40, measured modes 3 and 4 on model modes 4 and 3. Without the
   // eigenvalue stage the globalization stays there and Newton converges to it; the escape must
   // leave it for the truth.
   const Problem problem = load_problem(testing::SourcePath("problems/lfu/synthetic.yaml"), LoadOptions{0.7});

@@ -115,8 +115,8 @@ struct CandidateOptions {
   /// The screen's stand-in for a rigid support: springs of this many k_ref (a support's screen
   /// value k₀). The screen's columns are taken at c₀ = 1/k₀ instead of 0 (an error of about
   /// 1/this, relative; the residual itself is the rigid model's). Much stiffer springs inflate
-  /// tr(K), by which the eigen-solver judges what is a rigid-body mode: with 10⁴ k_ref the portal
-  /// frame's column feet made its first elastic mode look rigid. Range: [10, 1e8].
+  /// tr(K), by which the eigen-solver judges what is a rigid-body mode, until an elastic mode may
+  /// look rigid (docs/design.md, "Candidates"). Range: [10, 1e8].
   double rigid_support_factor = 1e3;
   /// Returns false and names the field, its value and the violated condition.
   bool IsValid(std::string* error) const;
@@ -159,14 +159,14 @@ struct RankingOptions {
   /// Significance level of the likelihood-ratio test, before the Bonferroni division by the
   /// number of candidates screened. Range: (0, 0.5).
   double significance = 0.01;
-  /// The refits: Gauss-Newton (from the first-order start it needed 5 iterations where L-BFGS
-  /// needed 17 on the LFU joint-rotation case, and 20 % less time). Tolerances suit a
+  /// The refits: Gauss-Newton from the first-order start (why not L-BFGS: docs/design.md,
+  /// "Refits and significance"). Tolerances suit a
   /// noise-weighted misfit (values of the order of the number of data): the projected gradient in
   /// scaled variables to 1e-4, or 1e-8 of its start, or an iteration that lowers the misfit by at
   /// most 1e-5 of it (a change of the chi-square below about 0.01); at most 60 iterations.
   ReducedOptions refit = default_refit_options();
-  /// Deflated solves to 1e-8 (the default 1e-11 buys nothing a ranking can see and costs a
-  /// third more solves).
+  /// Deflated solves to 1e-8: the default 1e-11 buys nothing a ranking can see and costs more
+  /// solves (docs/design.md, "Screen").
   ObjectiveOptions objective = default_objective_options();
   /// Returns false and names the field, its value and the violated condition.
   bool IsValid(std::string* error) const;

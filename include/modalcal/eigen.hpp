@@ -62,17 +62,15 @@ struct ModalOptions {
   /// Range: >= 1.
   int max_iterations = 1000;
   /// Krylov subspace size: basis columns before a restart. 0 means automatic: for block Lanczos
-  /// max(6 nev, nev + 12 block_size), which needed no restart on the models measured (it takes
-  /// 2 n subspace_size doubles for the basis and its product with M), at least nev + 2 block_size;
-  /// for Spectra 2 nev + 1 (measured best, see field notes). Range: 0 or > nev.
+  /// max(6 nev, nev + 12 block_size), at least nev + 2 block_size (it takes 2 n subspace_size
+  /// doubles for the basis and its product with M); for Spectra 2 nev + 1. Why these values:
+  /// docs/design.md, "Forward modal solve". Range: 0 or > nev.
   int subspace_size = 0;
   /// Columns per block of the shift-invert block Lanczos iteration; 1 selects single-vector
   /// Lanczos (Spectra); 0 means automatic, currently 4. CHOLMOD solves 4 right-hand sides for
   /// about 2 times the cost of one (8 for 3 times, 16 for 4 times), while the block Krylov space
-  /// needs more columns to converge: on the LFU model at 7e4-1.5e5 DOFs, 10 modes took 26-28
-  /// single solves or 13-14 blocks of 4 or 10-11 blocks of 8, 20 modes 54-64 single solves or
-  /// 23 blocks of 4 or 16 blocks of 8, and blocks of 4 were the fastest or within noise of it.
-  /// Range: 0..64.
+  /// needs more columns to converge; the measurements behind the default are in docs/design.md,
+  /// "Forward modal solve". Range: 0..64.
   int block_size = 0;
   /// Initial shift sigma (must be < 0), or 0 to choose one from trace(K)/trace(M). After each
   /// successful solve the solver moves the shift to -0.3 times the lowest elastic eigenvalue.

@@ -15,7 +15,8 @@
 /// \f$s_u^2 = \mathrm{tr}\,M(p_0)\f$, the rows by the mean diagonal mass
 /// \f$\bar m = s_u^2 / n\f$ and the diagonal \f$D_i = \bar m\,(\mathrm{diag} K/\lambda_{m,i} + \mathrm{diag} M)^{-1}\f$
 /// (at p_0), the parameters in the optimizer's scaling q (log10 p, p / p_ref).
-/// In physical units (\f$\lambda \sim 10^8\f$ for kHz modes) Ipopt fails; see the field notes.
+/// In physical units (\f$\lambda \sim 10^8\f$ for kHz modes) Ipopt fails (docs/design.md,
+/// "Nondimensionalization").
 ///
 /// The main risk is converging to the wrong eigenpairs: nothing in the constraints says that
 /// \f$u_i\f$ is the i-th mode, and from far starts the iteration can slide onto higher modes or
@@ -71,7 +72,7 @@ struct FullSpaceOptions {
   /// Who solves the Newton phase's KKT systems.
   ///  - `Ipopt`: Ipopt's interior-point Newton method, MUMPS on the whole KKT matrix of order
   ///    2 l (n + 1) + m (the design's reference path; its cost grows with the fill of the coupled
-  ///    saddle blocks: README, performance).
+  ///    saddle blocks: docs/benchmarks.md).
   ///  - `BlockElimination`: an SQP iteration on the same problem and derivatives whose KKT
   ///    systems are solved per mode: one sparse LDL^T of the bordered
   ///    \f$[[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ (order n + 1) per mode and an m x m
@@ -93,14 +94,13 @@ struct FullSpaceOptions {
   /// Eigenvalue misfit the globalization minimizes (see ObjectiveOptions::EigenvalueMisfit); the
   /// Newton phase always minimizes the objective's own (relative) misfit, and the globalization's
   /// history records the values of the misfit it minimized. `Logarithmic` removes the stationary
-  /// points of far too soft starts, where the relative misfit saturates (README: the bracket's
-  /// starts 2 and 8, lost with `Relative` even with `eigenvalues_first`).
+  /// points of far too soft starts, where the relative misfit saturates (docs/design.md,
+  /// "Globalization").
   ObjectiveOptions::EigenvalueMisfit globalization_misfit = ObjectiveOptions::EigenvalueMisfit::Logarithmic;
   /// Begin the globalization on the eigenvalue terms alone: every shape weight kappa_i set to 0
   /// while the measured shapes still pair the modes by MAC, then go on with the whole objective.
-  /// Mode-shape terms add local minima that the eigenvalues alone do not have (README: three of
-  /// the portal frame's 21 starts, lost without it, and the LFU problem's own start). No effect
-  /// without weighted shape terms or without weighted eigenvalue terms.
+  /// Mode-shape terms add local minima that the eigenvalues alone do not have (docs/design.md,
+  /// "Globalization"). No effect without weighted shape terms or without weighted eigenvalue terms.
   bool eigenvalues_first = true;
   /// Forward solve and MAC check of every u_i at every Newton iteration.
   bool mode_guard = true;
@@ -113,9 +113,9 @@ struct FullSpaceOptions {
   /// model mode would have to pass another to fit both), the driver globalizes again from there,
   /// first on the eigenvalue terms compared in frequency order
   /// (ObjectiveOptions::eigenvalues_in_frequency_order), then on the whole objective, runs the
-  /// Newton phase again and keeps the end point with the lower J; at most this many times. On the
-  /// LFU problem, the minimum with J = 0.40 (modes 3 and 4 crossed) of two of 21 starts (README).
-  /// No effect without weighted eigenvalue terms or without globalization. Range: >= 0.
+  /// Newton phase again and keeps the end point with the lower J; at most this many times
+  /// (docs/design.md, "Escape from crossed pairs"). No effect without weighted eigenvalue terms or
+  /// without globalization. Range: >= 0.
   int max_crossing_escapes = 1;
   /// Final check: M-weighted MAC of u_i with the paired forward mode. Range: (0, 1).
   double verify_mac = 0.99;

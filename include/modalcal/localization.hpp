@@ -26,10 +26,10 @@
 ///    residual force implies when read as a missing inertial force, and \f$M_{dd}\f$ times its
 ///    square is that error's share of the mode's kinetic energy (\f$\phi^T M \phi = 1\f$). So
 ///    each mode contributes a dimensionless number, independent of the shape's scale and of the
-///    unit system, and translations and rotations add up in the same unit. (Dividing by
-///    \f$K_{dd}\f$ instead was tried and ranked heavy lumped masses first whatever the change:
-///    the expanded residual is \f$M\Phi(\Lambda - \lambda_m)c\f$, and \f$M_{dd}\f$ undoes that
-///    mass weighting.) A node's energy is the sum over its free DOFs. For the mesh view, the
+///    unit system, and translations and rotations add up in the same unit. The expanded residual
+///    is \f$M\Phi(\Lambda - \lambda_m)c\f$, and \f$M_{dd}\f$ undoes that mass weighting
+///    (dividing by \f$K_{dd}\f$ would rank heavy lumped masses first whatever the change;
+///    docs/design.md). A node's energy is the sum over its free DOFs. For the mesh view, the
 ///    energy of a rigid coupling's reference node that belongs to no element is passed on
 ///    equally to the nodes it couples; an element gets the sum of its nodes' energies, each
 ///    divided by the number of elements sharing that node.
@@ -47,7 +47,7 @@
 /// number at the sensors stays below LocalizationOptions::max_condition, and no higher in frequency
 /// than LocalizationOptions::max_frequency_ratio times the highest measured mode, because noise
 /// in a basis coefficient enters the residual multiplied by the basis mode's eigenvalue. The
-/// indicator needs accurate shapes: with 1 % noise the portal frame's ranking was noise. It points at
+/// indicator needs accurate shapes (measured noise limits: docs/studies.md). It points at
 /// regions (a changed joint shows in the blocks it connects), not at single elements; more
 /// sensors, which allow more basis modes, sharpen it. A model whose measured shapes match
 /// exactly has a total energy at rounding level, and then the ranking means nothing
@@ -79,23 +79,18 @@ struct LocalizationOptions {
   int basis_modes = 0;
   /// Frequency cutoff of the automatic basis, relative to the highest measured frequency with a
   /// shape. Noise in a basis coefficient c_j enters the residual multiplied by
-  /// \f$\lambda_j - \lambda_m\f$, so high basis modes amplify noise: on the portal frame with
-  /// eight hidden changes, 1.5 (9 modes) put the changed region or its neighbour first in 8 of 8
-  /// cases without noise, 7 of 8 with 0.1 % noise on the shapes and 5 of 8 with 0.3 %; the
-  /// largest well-conditioned basis (22 modes) in 8, 4 and 3. Range: >= 1.
+  /// \f$\lambda_j - \lambda_m\f$, so high basis modes amplify noise (the measured trade-off
+  /// behind the default: docs/studies.md, "Where the model fails"). Range: >= 1.
   double max_frequency_ratio = 1.5;
-  /// Largest \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$ the automatic basis accepts. On the
-  /// portal frame (36 readings) it is 6.2 with 22 modes and jumps to 46 with 24; with 24 modes a
-  /// changed beam was ranked behind both columns even without measurement noise, and with 36
-  /// every hidden change gave the same ranking. Range: > 1.
+  /// Largest \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$ the automatic basis accepts: beyond
+  /// it the coefficients fit the error itself (docs/design.md, "Localization"). Range: > 1.
   double max_condition = 10.0;
   /// Most elastic modes the automatic choice computes. Range: >= 1.
   int max_automatic_basis = 40;
   /// Tikhonov weight alpha of the expansion, relative to the largest singular value of
   /// \f$P\Phi\f$ (0: plain least squares, SEREP). Damps the coefficients of modes the sensors
-  /// barely see and allows a basis with more modes than readings. It did not help on the
-  /// portal frame: a 40-mode basis with alpha 0.01-0.1 ranked 3-5 of 8 hidden changes wrong, and
-  /// alpha 0.02-0.1 on the automatic basis did not make 1 % noise tolerable. Range: [0, 1).
+  /// barely see and allows a basis with more modes than readings (what it did on the portal
+  /// frame: docs/design.md, "Localization"). Range: [0, 1).
   double regularization = 0.0;
   /// Singular values of \f$P\Phi\f$ below this fraction of the largest are dropped from the
   /// least-squares solution (a basis mode the sensors cannot see is then left out rather than
@@ -138,8 +133,8 @@ struct Localization {
   /// divided by total_energy.
   Vector element_indicator;
   std::vector<RegionShare> ranking;    ///< every region, largest share first
-  /// Sum of node_energy. Rounding level (5e-16 on the portal frame, whose stiff connections
-  /// make \f$K_{dd}/(\lambda M_{dd})\f$ large) means no error was found and the ranking is noise.
+  /// Sum of node_energy. At rounding level (which rises where stiff parts make
+  /// \f$K_{dd}/(\lambda M_{dd})\f$ large) it means no error was found and the ranking is noise.
   double total_energy = 0;
   int basis_size = 0;                  ///< columns of \f$\Phi\f$ (rigid-body modes included)
   /// \f$\sigma_{max}/\sigma_{min}\f$ of \f$P\Phi\f$: large means the sensors barely tell some basis

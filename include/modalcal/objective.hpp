@@ -111,8 +111,8 @@ struct ObjectiveOptions {
   /// - `true`: the shapes choose the set of model modes, and within that set the k-th lowest
   ///   model eigenvalue is compared with the k-th lowest measured frequency. Where two paired
   ///   modes cross as p changes, their MAC pairs swap and the paired eigenvalue terms jump, which
-  ///   leaves a barrier that a descent method cannot cross (on LFU, a minimum with J = 0.40 and
-  ///   modes 3 and 4 swapped); compared in order, the eigenvalue terms stay continuous. Only for an
+  ///   leaves a barrier that a descent method cannot cross (docs/design.md, "Escape from crossed
+  ///   pairs"); compared in order, the eigenvalue terms stay continuous. Only for an
   ///   objective without shape terms (the full-space escape from crossed pairs,
   ///   FullSpaceOptions::max_crossing_escapes): the Objective refuses it otherwise.
   bool eigenvalues_in_frequency_order = false;

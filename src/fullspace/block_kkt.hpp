@@ -17,7 +17,7 @@
 // inertia an interior-point or SQP method wants exactly when H is positive definite, so the
 // inertia test is on an m x m matrix. Cost per mode: one sparse symmetric indefinite
 // factorization of the bordered B_i (A_i = diag(s_i) B_i) and 2(m + 1) solves, against Ipopt's
-// factorization of the whole 2 l (n + 1) + m KKT matrix (README: where the time goes).
+// factorization of the whole 2 l (n + 1) + m KKT matrix (docs/benchmarks.md: where the time goes).
 
 #include <string>
 #include <vector>

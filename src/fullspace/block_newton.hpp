@@ -11,7 +11,7 @@
 //   3. dq from the QP in q within the bounds and a trust box (box_qp.hpp), then dx, dy;
 //   4. step length by Ipopt's filter line search on (|c|_1, f) (Waechter & Biegler 2006), which
 //      lets the iterate leave the constraints behind while f falls - a monotone l1 merit cut the
-//      steps along curved valleys of J to a crawl (README); y <- y + alpha dy; the trust box
+//      steps along curved valleys of J to a crawl (docs/design.md); y <- y + alpha dy; the trust box
 //      follows the accepted step;
 //   5. three cut steps in a row (line search or trust box): the iterate is outside Newton's
 //      region, and the driver globalizes again (NewtonPhaseResult::outside_newton_region).
