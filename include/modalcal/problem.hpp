@@ -170,6 +170,9 @@ struct Problem {
 /// Settings that override a problem file at load time.
 struct LoadOptions {
   double refinement = 0;       ///< > 0 overrides a generated mesh's refinement factor (an error with a mesh file)
+  /// Sensors placed at a point, and a data file's sensors, take the nearest node however far it
+  /// is: for a copy of a problem on a finer mesh, where the points may fall between nodes.
+  bool nearest_sensor_nodes = false;
 };
 
 /// Reads and validates a problem file.

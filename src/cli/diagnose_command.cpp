@@ -303,7 +303,10 @@ int run_diagnose(const DiagnoseArgs& args) {
   std::optional<Problem> finer;
   if (args.mesh_check > 0 && problem.mesh_refinement > 0) {
     try {
-      finer = load_problem(args.problem, LoadOptions{problem.mesh_refinement * args.mesh_check});
+      LoadOptions load;
+      load.refinement = problem.mesh_refinement * args.mesh_check;
+      load.nearest_sensor_nodes = true;
+      finer = load_problem(args.problem, load);
       options.finer_mesh = &*finer;
     } catch (const ProblemError& e) {  // e.g. sensors on a node set, which has more nodes there
       std::printf("no discretization estimate: on a mesh %g times finer the problem does not load: %s\n",

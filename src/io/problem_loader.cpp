@@ -201,6 +201,11 @@ class Loader {
   int node_by_id(const Field& f) const;
   int node(const Field& f) const;
   int nearest_node(const Field& at, double tolerance) const;
+  /// How far a sensor placed at a point may lie from its node: 1e-6 of the model's size, or any
+  /// distance for a refined copy of a problem (LoadOptions::nearest_sensor_nodes).
+  double sensor_tolerance() const {
+    return options_.nearest_sensor_nodes ? std::numeric_limits<double>::infinity() : 1e-6 * model_size_;
+  }
   PropertyId target(const Field& f);
   PropertyId add_property(const std::string& name, const Field& source, double value);
   void add_entity(const Field& entry, EntityKind kind, size_t index);
@@ -872,7 +877,7 @@ void Loader::read_sensors(const Field& f) {
       fail(*tolerance, "'tolerance' applies only to a sensor placed with 'at'");
     std::vector<int> nodes;
     if (where.key == "at")
-      nodes = {nearest_node(where, tolerance ? positive(*tolerance) : 1e-6 * model_size_)};
+      nodes = {nearest_node(where, tolerance ? positive(*tolerance) : sensor_tolerance())};
     else if (where.key == "node")
       nodes = {node_by_id(where)};
     else
@@ -1020,7 +1025,7 @@ void Loader::read_data_sensors(const Field& f) {
     fail(f, "lists " + std::to_string(items.size()) + " sensor DOFs but the problem's 'sensors' measure " +
                 std::to_string(problem_.sensors.size()) + "; " + same_order +
                 " (or leave out the problem's 'sensors' section to take the data's)");
-  const double tolerance = 1e-6 * model_size_;
+  const double tolerance = sensor_tolerance();
   for (const Field& item : items) {
     const std::string what = "data sensor " + std::to_string(item.item);
     const Fields fs = map_of(item, what, {"node", "direction", "at"});
