@@ -224,6 +224,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
 
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;
   objective_options.regularization = args.regularization;

@@ -107,6 +107,12 @@ ReducedOptions::Method parse_method(const std::string& name) {
   throw InputError("--method " + name + ": expected one of reduced-lbfgs, reduced-gauss-newton, reduced-newton");
 }
 
+void require_parameters(const Problem& problem) {
+  if (problem.parameters.empty())
+    throw InputError("no calibration parameters in " + problem.path +
+                     ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
+}
+
 void print_warnings(const Problem& problem) {
   for (const std::string& w : problem.warnings) std::cerr << "warning: " << w << "\n";
 }

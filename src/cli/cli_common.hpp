@@ -34,6 +34,10 @@ std::vector<std::string> method_names();
 std::vector<std::string> calibration_method_names();
 ReducedOptions::Method parse_method(const std::string& name);
 
+/// \throws InputError naming the file if the problem has no calibration parameters (for the
+/// commands that vary them: calibrate, check-derivatives, diagnose, the studies).
+void require_parameters(const Problem& problem);
+
 /// Prints each of problem.warnings (e.g. unmatched test nodes) as "warning: ..." to stderr.
 void print_warnings(const Problem& problem);
 

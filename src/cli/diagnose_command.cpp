@@ -137,6 +137,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
 
 int run_diagnose(const DiagnoseArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   print_warnings(problem);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
   DiagnosisOptions options;

@@ -295,6 +295,7 @@ nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
 
 int run_full_vs_reduced(const FullVsReducedArgs& args) {
   const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   if (!problem.has_truth())
     throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
   const std::vector<Vector> starts = study_starts(args, problem);

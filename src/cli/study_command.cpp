@@ -41,6 +41,7 @@ std::string output_path(const StudyArgs& args, const std::string& name) {
 
 int run_bounds_scaling(const StudyArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   struct Case {
     std::string name;
     bool bounds;
@@ -107,6 +108,7 @@ int run_bounds_scaling(const StudyArgs& args) {
 
 int run_starts(const StudyArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   const int n = static_cast<int>(problem.parameters.size());
   std::printf("%s: calibrations from the problem's start times", problem.path.c_str());
   for (double f : args.factors) std::printf(" %g", f);
