@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -76,6 +77,77 @@ TEST(HostileInputs, LibraryEntryPointsRefuseAProblemWithoutParameters) {
   const Problem with = load_problem(WriteTempFile("bar.yaml", BarWithModulus()));
   Objective with_objective(with);
   EXPECT_THROW(minimize_reduced(with_objective, Vector::Ones(2), ReducedOptions()), std::invalid_argument);
+}
+
+// --- 2. hangs and resources: refused up front, with the estimate ---
+
+TEST(HostileInputs, HugeRefinementIsRefusedBeforeMeshingWithTheEstimate) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  const CliRun run = RunCli("modes " + problem + " --refine 1e9");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "not enough memory for a mesh of about");
+  EXPECT_CONTAINS(run.output, "GB and this machine has");
+  EXPECT_CONTAINS(run.output, "--refine 1000000000");
+  EXPECT_LT(run.output.size(), 400u) << run.output;
+}
+
+TEST(HostileInputs, TinyElementsAndHugeBoxesAreRefusedAsInput) {
+  std::string fine = BarWithModulus();
+  fine.replace(fine.find("element_size: 0.5"), 17, "element_size: 1.0e-7");
+  CliRun run = RunCli("modes " + WriteTempFile("fine.yaml", fine));
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "fine.yaml:4: mesh: not enough memory");
+  EXPECT_CONTAINS(run.output, "use a larger element_size or a smaller refinement");
+  std::string long_box = BarWithModulus();
+  long_box.replace(long_box.find("max: [4, 0.5, 0.75]"), 19, "max: [1e12, 0.5, 0.75]");
+  run = RunCli("modes " + WriteTempFile("long.yaml", long_box));
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "not enough memory for a mesh of about");
+}
+
+TEST(HostileInputs, RefinementMustBeAPositiveFiniteNumber) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  for (const char* refine : {"nan", "0", "-1", "inf"}) {
+    const CliRun run = RunCli("modes " + problem + " --refine " + refine);
+    EXPECT_EQ(run.exit_code, 2) << refine << "\n" << run.output;
+    EXPECT_CONTAINS(run.output, "--refine");
+  }
+  EXPECT_THROW(load_problem(problem, LoadOptions{std::nan("")}), std::invalid_argument);
+  EXPECT_THROW(load_problem(problem, LoadOptions{-2}), std::invalid_argument);
+}
+
+TEST(HostileInputs, StartFactorsMustBePositiveFiniteWithAShortMessage) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  for (const char* factors : {"0 -1 nan", "nan", "-1"}) {
+    const CliRun run = RunCli("study starts " + problem + " --factors " + factors);
+    EXPECT_EQ(run.exit_code, 2) << factors << "\n" << run.output;
+    EXPECT_CONTAINS(run.output, "--factors: '");
+    // Not the largest double in 309 digits, as CLI11's own range check prints it.
+    EXPECT_LT(run.output.size(), 120u) << run.output;
+  }
+}
+
+TEST(HostileInputs, AbsurdNumberOfStartsIsRefusedBeforeAllocating) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  const CliRun run = RunCli("study full-vs-reduced " + problem + " --starts 1000000000");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "--starts");
+}
+
+TEST(HostileInputs, HugeProblemFileIsRefusedUpFront) {
+  // A valid problem padded with a comment to 17 MB: refused by its size, before it is parsed.
+  const std::string problem = WriteTempFile("huge.yaml", BarWithModulus() + "# " + std::string(17000000, 'x') + "\n");
+  const CliRun run = RunCli("modes " + problem);
+  EXPECT_EQ(run.exit_code, 2) << run.output.substr(0, 400);
+  EXPECT_CONTAINS(run.output, "huge.yaml' has 17 MB; a problem file has at most 16 MB");
+  EXPECT_LT(run.output.size(), 400u);
+}
+
+TEST(HostileInputs, DeviceAsExtendedFileIsRefusedWithTheLine) {
+  const std::string problem = WriteTempFile("zero.yaml", "extends: /dev/zero\n" + BarWithModulus());
+  const CliRun run = RunCli("modes " + problem);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "zero.yaml:1: extends '/dev/zero': '/dev/zero' is not a regular file");
 }
 
 }  // namespace

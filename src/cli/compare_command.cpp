@@ -205,8 +205,10 @@ void register_compare_command(CLI::App& app, int* exit_code) {
                   "parameter values: initial (default), truth, or a calibration report JSON (its final values)");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
   cmd->add_option("--json", args->json, "write the comparison as JSON to this file");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(positive_number());
   cmd->add_option("--unpaired-mac", args->unpaired_mac, "pairs with a lower MAC are listed as unpaired (default 0.5)")
+      ->check(finite_number())
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file");
   cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file");

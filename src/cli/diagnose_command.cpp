@@ -191,16 +191,17 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
   cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
   cmd->add_option("--start-factor", args->start_factor, "multiply the start values by this factor")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--refits", args->refits, "refit this many of the best-predicted effects (default 3)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")
+      ->check(finite_number())
       ->check(CLI::Range(1e-12, 0.5));
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file");
   cmd->add_option("--vtu", args->vtu,
                   "write the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this directory");

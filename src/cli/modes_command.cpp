@@ -111,8 +111,9 @@ void register_modes_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
   cmd->add_option("--json", args->json, "write the results as JSON to this file");
   cmd->add_option("--vtu", args->vtu, "write modes.vtu (mesh, blocks, properties, mode shapes), modes_sensors.vtu and modes.pvd to this directory");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
-  cmd->add_option("--num-modes", args->num_modes, "number of elastic modes (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(positive_number());
+  cmd->add_option("--num-modes", args->num_modes, "number of elastic modes (overrides the problem file)")->check(positive_number());
   cmd->callback([args, exit_code] { *exit_code = run_modes(*args); });
 }
 

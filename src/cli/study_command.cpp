@@ -173,17 +173,18 @@ void register_study_command(CLI::App& app, int* exit_code) {
     cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
     cmd->add_option("--out", args->out, "directory for CSV and plots (default: out)");
     cmd->add_option("--json", args->json, "write the study's figures as JSON to this file");
-    cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+    cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   };
   auto bounds = std::make_shared<StudyArgs>();
   CLI::App* bs = study->add_subcommand("bounds-scaling", "L-BFGS with/without bounds and scaling (report Figures 2-4)");
   common(bs, bounds.get());
-  bs->add_option("--iterations", bounds->iterations, "iterations per run (default 25)")->check(CLI::PositiveNumber);
+  bs->add_option("--iterations", bounds->iterations, "iterations per run (default 25)")->check(positive_number());
   bs->callback([bounds, exit_code] { *exit_code = run_bounds_scaling(*bounds); });
   auto starts = std::make_shared<StudyArgs>();
   CLI::App* st = study->add_subcommand("starts", "Calibrate from several starts; parameter spread and identifiability");
   common(st, starts.get());
-  st->add_option("--factors", starts->factors, "start = initial x factor, for each factor (default 0.1 10)");
+  st->add_option("--factors", starts->factors, "start = initial x factor, for each factor (default 0.1 10)")
+      ->check(positive_number());
   st->add_option("--method", starts->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
       ->check(CLI::IsMember(method_names()));
   st->callback([starts, exit_code] { *exit_code = run_starts(*starts); });
