@@ -150,5 +150,88 @@ TEST(HostileInputs, DeviceAsExtendedFileIsRefusedWithTheLine) {
   EXPECT_CONTAINS(run.output, "zero.yaml:1: extends '/dev/zero': '/dev/zero' is not a regular file");
 }
 
+// --- 3. no output replaces a file the run read ---
+
+const char* const kModulus = "parameters:\n  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5}\n";
+
+TEST(HostileInputs, OutputsNeverReplaceAFileTheProblemWasReadFrom) {
+  const std::string base = WriteTempFile("base.yaml", testing::CantileverBar());
+  const std::string data = WriteTempFile("data.yaml", "modes:\n  - {frequency_hz: 1.0}\n  - {frequency_hz: 3.0}\n");
+  const std::string report = WriteTempFile("report.json", R"({"parameters": [{"name": "E", "final": 900}]})");
+  const std::string problem = WriteTempFile(
+      "problem.yaml", "extends: base.yaml\n" + std::string(kModulus) + "measured: {file: data.yaml}\noptions: {num_modes: 4}\n");
+  for (const std::string& input : {problem, base, data, report}) {
+    const std::string before = ReadFile(input);
+    const CliRun run = RunCli("modes " + problem + " --params " + report + " --json " + input);
+    EXPECT_EQ(run.exit_code, 2) << input << "\n" << run.output;
+    EXPECT_CONTAINS(run.output, "refusing to write '" + input + "': it is an input");
+    EXPECT_EQ(ReadFile(input), before) << input;
+  }
+  // A VTU set and a plot are outputs too.
+  const std::string dir = std::filesystem::path(problem).parent_path().string();
+  const std::string vtu_named_like_data = WriteTempFile("modes.pvd", "mine");
+  const std::string named = WriteTempFile("named.yaml", "extends: base.yaml\n" + std::string(kModulus) +
+                                                            "measured: {file: modes.pvd}\noptions: {num_modes: 4}\n");
+  CliRun run = RunCli("modes " + named + " --vtu " + dir);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_EQ(ReadFile(vtu_named_like_data), "mine");
+}
+
+TEST(HostileInputs, CsvTablesNeverReplaceTheProblemsTestData) {
+  std::string csv = "mode,frequency_hz,node,direction,value\n";
+  for (int mode = 1; mode <= 2; ++mode)
+    for (int node = 50; node <= 54; ++node)
+      csv += std::to_string(mode) + "," + (mode == 1 ? "1.5" : "9.0") + "," + std::to_string(node) + ",y," +
+             std::to_string(mode == 1 ? 0.1 * node : 0.2 * (52 - node)) + "\n";
+  const std::string tables = WriteTempFile("run_modes.csv", csv);
+  const std::string problem = WriteTempFile("problem.yaml", testing::CantileverBar() + kModulus +
+                                                                "measured:\n  test_data: {file: run_modes.csv}\n");
+  const std::string prefix = std::filesystem::path(problem).parent_path().string() + "/run";
+  const CliRun run = RunCli("calibrate " + problem + " --method reduced-lbfgs --max-iterations 1 --quiet --csv " + prefix);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "refusing to write '" + tables + "': it is an input");
+  EXPECT_EQ(ReadFile(tables), csv);
+}
+
+/// A Gmsh 2.2 mesh of one hex8 element [0,1]^3 in the physical volume "part", with its x = 0 face
+/// in the physical surface "root"; `node_lines` replaces the $Nodes section's lines when given.
+std::string OneHexMsh(const std::string& node_lines = "") {
+  const std::string nodes = node_lines.empty() ? "1 0 0 0\n2 1 0 0\n3 1 1 0\n4 0 1 0\n5 0 0 1\n6 1 0 1\n7 1 1 1\n8 0 1 1\n"
+                                               : node_lines;
+  return "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n2 1 \"root\"\n3 2 \"part\"\n$EndPhysicalNames\n"
+         "$Nodes\n8\n" + nodes + "$EndNodes\n$Elements\n2\n1 3 2 1 1 1 4 8 5\n2 5 2 2 1 1 2 3 4 5 6 7 8\n$EndElements\n";
+}
+
+/// A problem on the mesh file `msh` (relative to the problem's folder).
+std::string OneHexProblem(const std::string& msh) {
+  return "mesh: {file: " + msh + "}\nblocks:\n  part: {E: 1000, nu: 0.3, density: 1}\nfixed:\n"
+         "  - {node_set: root, dofs: [x, y, z]}\noptions: {num_modes: 3}\n";
+}
+
+TEST(HostileInputs, OutputsNeverReplaceTheMeshFile) {
+  const std::string msh = WriteTempFile("part.msh", OneHexMsh());
+  const std::string problem = WriteTempFile("part.yaml", OneHexProblem("part.msh"));
+  const CliRun run = RunCli("modes " + problem + " --json " + msh);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "refusing to write '" + msh + "': it is an input");
+  EXPECT_EQ(ReadFile(msh), OneHexMsh());
+}
+
+TEST(HostileInputs, OutputsToDevicesAreWrittenThroughThemAndDirectoriesRefused) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  CliRun run = RunCli("modes " + problem + " --json /dev/stdout");
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_CONTAINS(run.output, "\"modes\": [");
+  // Renaming a temporary file onto it would have replaced the device link with a regular file.
+  EXPECT_TRUE(std::filesystem::is_symlink("/dev/stdout"));
+  EXPECT_FALSE(std::filesystem::is_regular_file(std::filesystem::symlink_status("/dev/stdout")));
+  run = RunCli("modes " + problem + " --json /dev/null");
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/null"));
+  run = RunCli("modes " + problem + " --json " + std::filesystem::path(problem).parent_path().string());
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "is a directory");
+}
+
 }  // namespace
 }  // namespace modalcal

@@ -125,6 +125,10 @@ struct DeclaredEffect {
 
 struct Problem {
   std::string path;            ///< the file it came from
+  /// Every file loading read, as written in the files naming them: `path`, the files it extends,
+  /// its measured-data, test-data and mesh files. No output may replace one of them
+  /// (output.hpp: the writers take this list as their `inputs`).
+  std::vector<std::string> source_files;
   std::string name, description;
   std::string units;           ///< free text, e.g. "in, lbf, s"
   Model model;

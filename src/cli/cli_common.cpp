@@ -66,6 +66,7 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
     p = problem->truth_values();
   } else {
     p = from_report(*problem, choice.source);
+    problem->source_files.push_back(choice.source);  // read too: no output may replace it
   }
   for (const std::string& a : choice.assignments) {
     const size_t eq = a.find('=');
@@ -153,7 +154,7 @@ nlohmann::json json_number(double value) { return std::isfinite(value) ? nlohman
 
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
   if (path.empty()) return;
-  write_file_atomically(path, json.dump(2) + "\n", {problem.path});
+  write_file_atomically(path, json.dump(2) + "\n", problem.source_files);
 }
 
 VtuFields localization_fields(const Problem& problem, const Localization& result) {

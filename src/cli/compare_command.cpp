@@ -12,6 +12,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/comparison.hpp"
+#include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 
 namespace modalcal::cli {
@@ -169,6 +170,8 @@ int run_compare(const CompareArgs& args) {
     json["cross_orthogonality_note"] = c.cross_orthogonality_note;
   }
   json["warnings"] = c.warnings;
+  for (const std::string& plot : {args.mac_plot, args.error_plot})
+    if (!plot.empty()) check_not_input(plot, problem.source_files);
   write_json(args.json, json, problem);
 
   const std::string name = problem.name.empty() ? problem.path : problem.name;

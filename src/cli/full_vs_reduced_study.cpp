@@ -22,6 +22,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/fullspace.hpp"
+#include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
 
@@ -177,11 +178,13 @@ std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Probl
   };
   std::vector<Task> tasks;
   for (size_t s = 0; s < starts.size(); ++s)
-    for (size_t m = 0; m < args.methods.size(); ++m)
+    for (size_t m = 0; m < args.methods.size(); ++m) {
       tasks.push_back({s, m,
                        (std::filesystem::path(args.out) /
                         ("full_vs_reduced_run_" + std::to_string(s) + "_" + std::to_string(m) + ".json"))
                            .string()});
+      check_not_input(tasks.back().report, problem.source_files);  // each is removed before its run
+    }
   std::vector<std::vector<Run>> runs(args.methods.size(), std::vector<Run>(starts.size()));
   std::map<pid_t, size_t> running;  // child -> task
   size_t next = 0;

@@ -69,7 +69,7 @@ int run_synth(const SynthArgs& args) {
   // Each --truth is a problem file, a changes file or a change string.
   std::optional<Problem> truth_file;
   std::vector<ModelChange> changes;
-  std::vector<std::string> inputs = {args.problem};
+  std::vector<std::string> inputs = nominal.source_files;
   for (const std::string& t : args.truths) {
     if (!std::filesystem::is_regular_file(t)) {
       if (t.find('=') == std::string::npos)
@@ -83,6 +83,7 @@ int run_synth(const SynthArgs& args) {
     } else {
       if (truth_file) throw InputError("--truth " + t + ": a second truth problem file (" + truth_file->path + " is the first)");
       truth_file = load_problem(t, load);
+      inputs.insert(inputs.end(), truth_file->source_files.begin(), truth_file->source_files.end());
     }
   }
   const TruthModel truth = make_truth(nominal, truth_file ? &*truth_file : nullptr, changes);

@@ -562,6 +562,7 @@ void Loader::read_mesh_file(const Fields& fs) {
   const double scale = fs.find("scale") ? positive(*fs.find("scale")) : 1.0;
   const std::string path = (std::filesystem::path(current_file_).parent_path() / text(file)).string();
   MeshFile mesh;
+  problem_.source_files.push_back(path);
   try {
     mesh = modalcal::read_mesh_file(path, mesh_format);
   } catch (const ProblemError& e) {
@@ -1033,6 +1034,7 @@ void Loader::read_measured_file(const Field& f) {
   const std::string problem_file = current_file_;
   current_file_ = path;
   problem_.measured_file = path;
+  problem_.source_files.push_back(path);
   if (!root.IsMap())
     fail_at(1, "", "expected a data file (a map with 'sensors' and 'modes'), got " + describe(root));
   const Fields fs = map_of({"", "", root, 1, 0}, "", {"synthesized_from", "noise", "sensors", "truth", "modes"});
@@ -1402,6 +1404,8 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
   }
   Problem problem;
   problem.path = path;
+  problem.source_files.push_back(path);
+  for (const auto& [base, base_path] : bases) problem.source_files.push_back(base_path);
   Loader(path, options, problem).load(root, bases);
   if (problem.synthetic) detail::synthesize_measured(&problem, *problem.synthetic);
   return problem;
