@@ -233,5 +233,53 @@ TEST(HostileInputs, OutputsToDevicesAreWrittenThroughThemAndDirectoriesRefused) 
   EXPECT_CONTAINS(run.output, "is a directory");
 }
 
+// --- 4. bad input exits with 2, whatever part of the program finds it ---
+
+TEST(HostileInputs, EmptySetValueIsAnInputErrorNotAZeroModulus) {
+  const CliRun run = RunCli("modes " + WriteTempFile("bar.yaml", BarWithModulus()) + " --set E=");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "--set E: no value after '='");
+}
+
+TEST(HostileInputs, SymbolicLinkLoopInExtendsIsAnInputError) {
+  const std::string problem = WriteTempFile("problem.yaml", "extends: loop.yaml\n" + BarWithModulus());
+  const std::filesystem::path loop = std::filesystem::path(problem).parent_path() / "loop.yaml";
+  std::filesystem::remove(loop);
+  std::filesystem::create_symlink("loop.yaml", loop);
+  const CliRun run = RunCli("modes " + problem);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "problem.yaml:1: extends 'loop.yaml': cannot open the problem file");
+  EXPECT_CONTAINS(run.output, "symbolic links");
+}
+
+TEST(HostileInputs, ParameterNameThatIsNotUtf8KeepsTheCalibrationResult) {
+  std::string text = BarWithModulus();
+  text.replace(text.find("  E: {targets"), 4, "  E\xff:");
+  const std::string problem = WriteTempFile("latin1.yaml", text);
+  const std::string json = WriteTempFile("report.json", "");
+  const CliRun run = RunCli("calibrate " + problem + " --method reduced-lbfgs --max-iterations 3 --quiet --json " + json);
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json report = nlohmann::json::parse(ReadFile(json));
+  EXPECT_EQ(report["parameters"][0]["name"], "E\xEF\xBF\xBD");  // U+FFFD for the byte JSON cannot hold
+}
+
+TEST(HostileInputs, ModelsTheSolverCannotSolveAreNamedAtTheirSection) {
+  const std::string msh = WriteTempFile("part.msh", OneHexMsh());
+  std::string problem = OneHexProblem("part.msh");
+  problem.replace(problem.find("num_modes: 3"), 12, "num_modes: 20");
+  CliRun run = RunCli("modes " + WriteTempFile("many.yaml", problem));
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "many.yaml:6: options: num_modes 20 ask for 20 modes, but the model has only 12 free DOFs");
+  problem = OneHexProblem("part.msh");
+  problem.replace(problem.find("fixed:"), 6, "node_sets:\n  all: {box: {min: [0, 0, 0], max: [1, 1, 1]}}\nfixed:");
+  problem.replace(problem.find("node_set: root"), 14, "node_set: all");
+  run = RunCli("modes " + WriteTempFile("all_fixed.yaml", problem));
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "all_fixed.yaml:6: fixed: the supports and couplings leave no degree of freedom free");
+  run = RunCli("modes " + WriteTempFile("bar.yaml", BarWithModulus()) + " --num-modes 1000");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_CONTAINS(run.output, "--num-modes 1000: the model of");
+}
+
 }  // namespace
 }  // namespace modalcal

@@ -36,6 +36,12 @@ int run_modes(const ModesArgs& args) {
   options.num_modes = args.num_modes > 0 ? args.num_modes : problem.options.num_modes;
   options.max_rigid_modes = problem.expected_rigid_modes();
   options.tolerance = problem.options.tolerance;
+  if (options.num_modes + options.max_rigid_modes > system.num_dofs())
+    throw InputError("--num-modes " + std::to_string(options.num_modes) + ": the model of " + problem.path + " has only " +
+                     std::to_string(system.num_dofs()) + " free DOFs" +
+                     (options.max_rigid_modes ? " (and up to " + std::to_string(options.max_rigid_modes) +
+                                                    " rigid-body modes to find)"
+                                              : ""));
   ModalSolver solver(system.pattern(), options);
   const ModalResult result = solver.solve(K, M);
   if (result.status != EigenStatus::Successful) {

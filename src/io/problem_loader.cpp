@@ -25,6 +25,7 @@
 #include "io/input_file.hpp"
 #include "io/measured_test_data.hpp"
 #include "io/synthetic.hpp"
+#include "modalcal/assembly.hpp"
 #include "modalcal/mesh_file.hpp"
 
 namespace modalcal {
@@ -191,6 +192,7 @@ class Loader {
   void read_mesh(const Field& f);
   void read_box_mesh(const Fields& fs);
   void read_mesh_file(const Fields& fs);
+  void check_free_dofs();
   void check_mesh_size(double nodes, double extra_bytes, const Field& at, const std::string& remedy) const;
   void add_mesh_node(long id, const Vec3& x);
   void finish_mesh();
@@ -246,6 +248,7 @@ class Loader {
   std::map<std::string, Entity> entities_;
   /// "block 'foam'" -> location: Model::validate names entities this way but knows no lines.
   std::map<std::string, Location> locations_;
+  Location fixed_at_, num_modes_at_;  ///< of the sections check_free_dofs names
 };
 
 std::vector<Field> Loader::entries(const Field& f, const std::string& what) const {
@@ -445,6 +448,7 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
     const Location at = location_of_model_error(e.what());
     throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
   }
+  check_free_dofs();
   // Effects act on the finished model.
   if (const Field* f = top.find("effects")) {
     enter(*f);
@@ -590,6 +594,27 @@ void Loader::read_mesh_file(const Fields& fs) {
                      " elements), which 'blocks' gives no material; add " + b.name + ": {E: ..., nu: ..., density: ...}");
   for (const MeshFileNodeSet& set : mesh.node_sets) model_.node_sets.push_back({set.name, set.nodes});
   for (const std::string& warning : mesh.warnings) problem_.warnings.push_back(warning);
+}
+
+// The modal solver needs free DOFs, and at least as many as the modes it is asked for: a model
+// without them is a mistake in the file, named here at its section rather than by the solver.
+void Loader::check_free_dofs() {
+  const int free = DofMap(model_).num_free();
+  if (free == 0) {
+    current_file_ = fixed_at_.file.empty() ? path_ : fixed_at_.file;
+    fail_at(fixed_at_.line, "fixed", "the supports and couplings leave no degree of freedom free: nothing can vibrate");
+  }
+  const int rigid = problem_.expected_rigid_modes(), wanted = problem_.options.num_modes + rigid;
+  // The default num_modes matters only to a problem meant to be solved: one given its modes or data.
+  const bool meant = num_modes_at_.line > 0 || !problem_.measured.empty() || problem_.synthetic;
+  if (wanted <= free || !meant) return;
+  current_file_ = num_modes_at_.file.empty() ? path_ : num_modes_at_.file;
+  fail_at(num_modes_at_.line, "options",
+          "num_modes " + std::to_string(problem_.options.num_modes) +
+              (num_modes_at_.line ? "" : " (the default)") +
+              (rigid ? " and up to " + std::to_string(rigid) + " rigid-body modes" : "") + " ask for " +
+              std::to_string(wanted) + " modes, but the model has only " + std::to_string(free) +
+              " free DOFs; lower options.num_modes or refine the mesh");
 }
 
 // Refuses, before it is made, a mesh whose modal solve would exhaust the memory (or overflow the
@@ -771,6 +796,7 @@ void Loader::read_point_masses(const Field& f) {
 }
 
 void Loader::read_fixed(const Field& f) {
+  fixed_at_ = {current_file_, f.line};
   std::vector<std::string> dof_names;
   for (int c = 0; c < 6; ++c) dof_names.push_back(component_name(c));
   for (const Field& item : list(f)) {
@@ -960,7 +986,10 @@ int Loader::nearest_node(const Field& at, double tolerance) const {
 void Loader::read_options(const Field& f) {
   const Fields fs = map_of(f, "options", {"num_modes", "max_rigid_modes", "tolerance"});
   ProblemOptions& o = problem_.options;
-  if (const Field* n = fs.find("num_modes")) o.num_modes = integer_in(*n, 1, INT_MAX);
+  if (const Field* n = fs.find("num_modes")) {
+    o.num_modes = integer_in(*n, 1, INT_MAX);
+    num_modes_at_ = {current_file_, n->line};
+  }
   if (const Field* n = fs.find("max_rigid_modes")) o.max_rigid_modes = integer_in(*n, 0, 6);
   if (const Field* t = fs.find("tolerance")) o.tolerance = positive(*t);
 }
