@@ -18,29 +18,10 @@
 namespace modalcal {
 namespace {
 
+using testing::CliRun;
+using testing::ReadFile;
+using testing::RunCli;
 using testing::WriteTempFile;
-
-struct CliRun {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
-
-CliRun RunCli(const std::string& args) {
-  const std::string command = std::string(MODALCAL_CLI) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string out;
-  char buffer[4096];
-  while (size_t n = fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
-  const int status = pclose(pipe);
-  return {WEXITSTATUS(status), out};
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 const char* kBar = R"(
 mesh:

@@ -1,6 +1,9 @@
 #include "test_util.hpp"
 
+#include <sys/wait.h>
+
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <cstdlib>
@@ -133,6 +136,23 @@ std::string WriteTempFile(const std::string& name, const std::string& text) {
   const std::filesystem::path path = dir / name;
   std::ofstream(path) << text;
   return path.string();
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+CliRun RunCli(const std::string& args) {
+  const std::string command = std::string(MODALCAL_CLI) + " " + args + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string out;
+  char buffer[4096];
+  while (size_t n = fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
+  const int status = pclose(pipe);
+  return {WEXITSTATUS(status), out};
 }
 
 Model MakeChain(int n, double m, double k, bool grounded) {

@@ -46,6 +46,18 @@ std::string SourcePath(const std::string& relative);
 /// Writes `text` to a fresh file in a per-test temporary directory and returns its path.
 std::string WriteTempFile(const std::string& name, const std::string& text);
 
+/// The whole content of a file ("" if it cannot be read).
+std::string ReadFile(const std::string& path);
+
+/// One run of the command-line program.
+struct CliRun {
+  int exit_code;
+  std::string output;  ///< stdout and stderr
+};
+
+/// Runs `fullspace_calib ARGS` through the shell (so ARGS may quote and redirect).
+CliRun RunCli(const std::string& args);
+
 /// A spring-mass chain along x: `n` point masses `m` on nodes 1..n joined by joints of axial
 /// stiffness `k` (properties "joint<i>.kx"); node 0 is fixed in x when `grounded`, otherwise
 /// it is a further mass (free-free chain with one rigid-body mode). y and z are fixed

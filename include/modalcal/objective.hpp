@@ -172,6 +172,9 @@ class Objective {
   const ParameterScaling& regularization_scaling() const { return regularization_scaling_; }
   const ParametricSystem& system() const { return *system_; }
   int num_parameters() const { return system_->num_parameters(); }
+  /// For the calibrations and checks, which need something to vary: \throws std::invalid_argument
+  /// naming `caller` if the problem has no calibration parameters or `p` is not one value for each.
+  void require_parameters(const Vector& p, const std::string& caller) const;
   int num_residuals() const { return num_residuals_; }
   /// Forward solves and linear solves (right-hand sides) since construction.
   int forward_solves() const { return forward_solves_; }

@@ -13,9 +13,12 @@ namespace modalcal {
 /// For writers of several files, which check every target before writing the first.
 void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
 
-/// Writes `content` to `path` atomically (temporary file + rename in the same directory).
-/// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk), or
-///         std::runtime_error naming the path if it cannot be written.
+/// Writes `content` to `path` atomically (temporary file + rename in the same directory) when
+/// `path` is a regular file or does not exist; straight through it, as a shell redirection would,
+/// when it is a device, a FIFO or a symbolic link (so /dev/stdout, /dev/null and pipes work and
+/// stay what they are).
+/// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk) or a directory,
+///         or std::runtime_error naming the path if it cannot be written.
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs = {});
 

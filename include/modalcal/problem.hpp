@@ -129,6 +129,10 @@ struct DeclaredEffect {
 
 struct Problem {
   std::string path;            ///< the file it came from
+  /// Every file loading read, as written in the files naming them: `path`, the files it extends,
+  /// its measured-data, test-data and mesh files. No output may replace one of them
+  /// (output.hpp: the writers take this list as their `inputs`).
+  std::vector<std::string> source_files;
   std::string name, description;
   std::string units;           ///< free text, e.g. "in, lbf, s"
   Model model;
@@ -176,7 +180,10 @@ struct LoadOptions {
 };
 
 /// Reads and validates a problem file.
-/// \throws ProblemError naming the file, the line and what is wrong.
+/// \throws ProblemError naming the file, the line and what is wrong, also for a file that is not
+///         a regular one or has more than 16 MB, and for a generated mesh whose modal solve would
+///         need more memory than the machine has (estimated from its size before it is made);
+///         std::invalid_argument for a refinement that is negative or not finite.
 Problem load_problem(const std::string& path, const LoadOptions& options = {});
 
 /// An error in user input, with its location. what() is "file:line: message".

@@ -224,6 +224,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
 
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;
   objective_options.regularization = args.regularization;
@@ -274,13 +275,14 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--vtu", args->vtu,
                   "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
                   "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
-  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
+  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(non_negative_number());
   cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
   cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
-  cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")
+      ->check(positive_number());
   cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--add", args->add,
                   "calibrate again with this effect added and show before and after: a change without its value "
                   "(joint2.kry, point_mass@top:mass, support@post_bottom:kx), with a start value (joint2.kry=1e5), "
@@ -288,7 +290,7 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--globalization-misfit", args->globalization_misfit,
                   "fullspace: eigenvalue misfit of the globalization, log (default: ln(lambda/lambda_m), no "
                   "stationary points where the model is far too soft) or relative (the objective's own)")
@@ -306,7 +308,7 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--no-crossing-escape", args->no_crossing_escape,
                 "fullspace: accept a minimum where two measured modes pair with model modes in crossed order (default: "
                 "globalize again from there on the eigenvalues in frequency order and keep the lower minimum)");
-  cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(CLI::PositiveNumber);
+  cmd->add_option("--mu-init", args->mu_init, "fullspace: Ipopt's initial barrier parameter")->check(positive_number());
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");
   cmd->add_option("--ipopt-print-level", args->print_level, "fullspace: Ipopt's own output (0-12, default 0)")
       ->check(CLI::Range(0, 12));

@@ -98,7 +98,7 @@ std::string csv_cell(const nlohmann::json& entry, const char* key) {
     std::snprintf(buffer, sizeof buffer, "%.10g", v.get<double>());
     return buffer;
   }
-  const std::string text = v.is_string() ? v.get<std::string>() : v.dump();
+  const std::string text = v.is_string() ? v.get<std::string>() : v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   if (text.find_first_of(",\"\n") == std::string::npos) return text;
   std::string quoted = "\"";
   for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
@@ -127,17 +127,17 @@ std::vector<std::string> write_csv_report(const std::string& prefix, const nlohm
                                         {"label", "model_mode", "measured_hz", "predicted_hz", "error_percent", "mac"})},
       {prefix + "_history.csv", csv_table(report.value("history", nlohmann::json::array()),
                                           {"iteration", "phase", "objective", "gradient_norm"})}};
-  for (const auto& file : files) check_not_input(file.first, {problem.path});
+  for (const auto& file : files) check_not_input(file.first, problem.source_files);
   std::vector<std::string> paths;
   for (const auto& file : files) {
-    write_file_atomically(file.first, file.second, {problem.path});
+    write_file_atomically(file.first, file.second, problem.source_files);
     paths.push_back(file.first);
   }
   return paths;
 }
 
 void plot_history(const std::string& path, const nlohmann::json& report, const Problem& problem) {
-  check_not_input(path, {problem.path});
+  check_not_input(path, problem.source_files);
   PlotSeries objective{"objective", {}, {}}, gradient{"gradient norm", {}, {}};
   for (const nlohmann::json& h : report.value("history", nlohmann::json::array())) {
     const double iteration = h["iteration"].get<double>();

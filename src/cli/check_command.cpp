@@ -27,6 +27,7 @@ struct CheckArgs {
 
 int run_check(const CheckArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   const Vector p = choose_parameters(&problem, args.params);
   Objective objective(problem);
   GradientCheckOptions options;
@@ -58,13 +59,13 @@ void register_check_command(CLI::App& app, int* exit_code) {
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--params", args->params.source, "where to check: initial, truth, or a report JSON");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE (repeatable)");
-  cmd->add_option("--step", args->step, "relative finite-difference step (default 1e-5)")->check(CLI::PositiveNumber);
+  cmd->add_option("--step", args->step, "relative finite-difference step (default 1e-5)")->check(positive_number());
   cmd->add_option("--tolerance", args->tolerance, "largest acceptable relative error (default 1e-4)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--fullspace-step", args->fullspace_step, "relative step of the full-space check (default 1e-6)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_flag("--reduced-only", args->reduced_only, "check only the reduced gradient");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   cmd->callback([args, exit_code] { *exit_code = run_check(*args); });
 }
 

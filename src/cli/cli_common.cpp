@@ -13,6 +13,7 @@ namespace modalcal::cli {
 namespace {
 
 double parse_value(const std::string& text, const std::string& what) {
+  if (text.empty()) throw InputError(what + ": no value after '='; expected NAME=VALUE with a finite number");
   size_t used = 0;
   double v = 0;
   try {
@@ -21,7 +22,7 @@ double parse_value(const std::string& text, const std::string& what) {
     used = 0;
   }
   if (used != text.size() || !std::isfinite(v))
-    throw InputError(what + ": '" + text + "' is not a finite number");
+    throw InputError(what + ": '" + text.substr(0, 40) + (text.size() > 40 ? "...'" : "'") + " is not a finite number");
   return v;
 }
 
@@ -66,6 +67,7 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
     p = problem->truth_values();
   } else {
     p = from_report(*problem, choice.source);
+    problem->source_files.push_back(choice.source);  // read too: no output may replace it
   }
   for (const std::string& a : choice.assignments) {
     const size_t eq = a.find('=');
@@ -105,6 +107,12 @@ ReducedOptions::Method parse_method(const std::string& name) {
   if (name == "reduced-gauss-newton") return ReducedOptions::Method::GaussNewton;
   if (name == "reduced-newton") return ReducedOptions::Method::Newton;
   throw InputError("--method " + name + ": expected one of reduced-lbfgs, reduced-gauss-newton, reduced-newton");
+}
+
+void require_parameters(const Problem& problem) {
+  if (problem.parameters.empty())
+    throw InputError("no calibration parameters in " + problem.path +
+                     ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
 }
 
 void print_warnings(const Problem& problem) {
@@ -147,7 +155,10 @@ nlohmann::json json_number(double value) { return std::isfinite(value) ? nlohman
 
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem) {
   if (path.empty()) return;
-  write_file_atomically(path, json.dump(2) + "\n", {problem.path});
+  // Names come from the user's files and may not be UTF-8, which JSON requires: such bytes become
+  // U+FFFD rather than an exception that would lose the result.
+  write_file_atomically(path, json.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+                        problem.source_files);
 }
 
 VtuFields localization_fields(const Problem& problem, const Localization& result) {

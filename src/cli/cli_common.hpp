@@ -25,7 +25,7 @@ struct ParameterChoice {
 };
 
 /// Parameter values chosen by `choice`; property assignments (names that are not parameters)
-/// are applied to problem->model.
+/// are applied to problem->model. A report read for them joins problem->source_files.
 Vector choose_parameters(Problem* problem, const ParameterChoice& choice);
 
 /// The reduced-space methods by their CLI names, and the reverse.
@@ -34,10 +34,15 @@ std::vector<std::string> method_names();
 std::vector<std::string> calibration_method_names();
 ReducedOptions::Method parse_method(const std::string& name);
 
+/// \throws InputError naming the file if the problem has no calibration parameters (for the
+/// commands that vary them: calibrate, check-derivatives, diagnose, the studies).
+void require_parameters(const Problem& problem);
+
 /// Prints each of problem.warnings (e.g. unmatched test nodes) as "warning: ..." to stderr.
 void print_warnings(const Problem& problem);
 
-/// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite the problem.
+/// Writes `json` (pretty, atomically) unless `path` is empty; refuses to overwrite any file the
+/// problem was read from (Problem::source_files).
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
 /// JSON has no NaN or infinity: a number that is not finite (unknown, undefined) is written as null.
 nlohmann::json json_number(double value);

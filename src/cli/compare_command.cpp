@@ -12,6 +12,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/comparison.hpp"
+#include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 
 namespace modalcal::cli {
@@ -169,6 +170,8 @@ int run_compare(const CompareArgs& args) {
     json["cross_orthogonality_note"] = c.cross_orthogonality_note;
   }
   json["warnings"] = c.warnings;
+  for (const std::string& plot : {args.mac_plot, args.error_plot})
+    if (!plot.empty()) check_not_input(plot, problem.source_files);
   write_json(args.json, json, problem);
 
   const std::string name = problem.name.empty() ? problem.path : problem.name;
@@ -205,8 +208,10 @@ void register_compare_command(CLI::App& app, int* exit_code) {
                   "parameter values: initial (default), truth, or a calibration report JSON (its final values)");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
   cmd->add_option("--json", args->json, "write the comparison as JSON to this file");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(positive_number());
   cmd->add_option("--unpaired-mac", args->unpaired_mac, "pairs with a lower MAC are listed as unpaired (default 0.5)")
+      ->check(finite_number())
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file");
   cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file");

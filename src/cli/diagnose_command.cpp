@@ -269,7 +269,11 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
 
 int run_diagnose(const DiagnoseArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   print_warnings(problem);
+  // Refused before the diagnosis runs, not after: no output may replace a file the run reads.
+  for (const std::string* out : {&args.json, &args.plot, &args.write_problem})
+    if (!out->empty()) check_not_input(*out, problem.source_files);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
@@ -333,7 +337,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   }
   if (!args.write_problem.empty()) {
     write_file_atomically(args.write_problem, problem_with_effects_yaml(problem, args.write_problem, d),
-                          {problem.path});
+                          problem.source_files);
     std::printf("wrote %s: the problem with the effects the diagnosis kept, for calibrate\n", args.write_problem.c_str());
   }
   if (!args.vtu.empty() && d.localization) {
@@ -356,19 +360,20 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
   cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
   cmd->add_option("--start-factor", args->start_factor, "multiply the start values by this factor")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--refits", args->refits, "refit this many of the best-predicted effects (default 3)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")
+      ->check(finite_number())
       ->check(CLI::Range(1e-12, 0.5));
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--max-steps", args->max_steps,
                   "accept at most this many effects, one per step (default 4; 0: screen and refit only)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--mesh-check", args->mesh_check,
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")

@@ -21,6 +21,7 @@
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/fullspace.hpp"
+#include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "support/random_draws.hpp"
@@ -176,11 +177,13 @@ std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Probl
   };
   std::vector<Task> tasks;
   for (size_t s = 0; s < starts.size(); ++s)
-    for (size_t m = 0; m < args.methods.size(); ++m)
+    for (size_t m = 0; m < args.methods.size(); ++m) {
       tasks.push_back({s, m,
                        (std::filesystem::path(args.out) /
                         ("full_vs_reduced_run_" + std::to_string(s) + "_" + std::to_string(m) + ".json"))
                            .string()});
+      check_not_input(tasks.back().report, problem.source_files);  // each is removed before its run
+    }
   std::vector<std::vector<Run>> runs(args.methods.size(), std::vector<Run>(starts.size()));
   std::map<pid_t, size_t> running;  // child -> task
   size_t next = 0;
@@ -294,6 +297,7 @@ nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
 
 int run_full_vs_reduced(const FullVsReducedArgs& args) {
   const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   if (!problem.has_truth())
     throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
   const std::vector<Vector> starts = study_starts(args, problem);
@@ -319,8 +323,10 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("problem", args->problem, "problem file (YAML) with the truth of every parameter")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--starts", args->starts, "random starts p_true 10^U(-1.5, 0.5) (default 10)")
-      ->check(CLI::NonNegativeNumber);
+  // Every start is drawn (and each run's report named) before the first run: a cap keeps a typo
+  // such as 1000000000 from allocating them all.
+  cmd->add_option("--starts", args->starts, "random starts p_true 10^U(-1.5, 0.5) (default 10, at most 10000)")
+      ->check(CLI::Range(0, 10000));
   cmd->add_option("--seed", args->seed, "random seed (default 1)");
   std::vector<std::string> names = calibration_method_names();
   for (const char* variant :
@@ -336,14 +342,14 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
                   "elimination Newton solver (--newton-solver block); default: the first three")
       ->check(CLI::IsMember(names));
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--out", args->out, "directory for the plot (default: out)");
   cmd->add_option("--json", args->json, "write the study as JSON to this file");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   cmd->add_option("--jobs", args->jobs,
                   "runs at a time, each with one BLAS thread (default 1); successes and counts are unchanged, "
                   "times then include waiting for the cores")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->callback([args, exit_code] { *exit_code = run_full_vs_reduced(*args); });
 }
 

@@ -85,7 +85,7 @@ int run_import(const ImportArgs& args) {
   std::string conversion;
   if (!args.problem.empty()) {
     const Problem problem = load_problem(args.problem);
-    inputs.push_back(args.problem);
+    inputs.insert(inputs.end(), problem.source_files.begin(), problem.source_files.end());
     print_warnings(problem);
     conversion = convert_lengths(&data, args.lengths, problem.units);
     NodeMapOptions options;
@@ -121,11 +121,11 @@ void register_import_test_data_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--map", args->map, "match test nodes to model nodes by id or coordinates (default id)")
       ->check(CLI::IsMember({"id", "coordinates"}));
   cmd->add_option("--tolerance", args->tolerance, "largest distance for --map coordinates, in model units")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   auto* unit = cmd->add_option("--length-unit", args->lengths.unit, "convert lengths to this unit (m, cm, mm, in, ft)")
                    ->check(CLI::IsMember({"m", "cm", "mm", "in", "ft"}));
   cmd->add_option("--scale-length", args->lengths.scale, "multiply the file's lengths by this factor")
-      ->check(CLI::PositiveNumber)
+      ->check(positive_number())
       ->excludes(unit);
   cmd->add_option("--csv", args->csv, "write the modes as CSV (mode,frequency_hz,node,direction,value) to this file");
   cmd->callback([args, exit_code] { *exit_code = run_import(*args); });

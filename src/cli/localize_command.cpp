@@ -86,12 +86,14 @@ void register_localize_command(CLI::App& app, int* exit_code) {
   cmd->add_option("problem", args->problem, "problem file (YAML) with measured shapes")->required()->check(CLI::ExistingFile);
   cmd->add_option("--params", args->params.source, "parameter values: initial, truth, or a calibration report JSON");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(positive_number());
   cmd->add_option("--basis-modes", args->options.basis_modes,
                   "elastic model modes in the expansion basis (0: as many as the sensors allow, at most 40)");
   cmd->add_option("--regularization", args->options.regularization,
-                  "Tikhonov weight of the expansion, relative to the largest singular value (0: SEREP)");
-  cmd->add_option("--rows", args->rows, "regions to print")->check(CLI::PositiveNumber);
+                  "Tikhonov weight of the expansion, relative to the largest singular value (0: SEREP)")
+      ->check(finite_number());
+  cmd->add_option("--rows", args->rows, "regions to print")->check(positive_number());
   cmd->add_option("--json", args->json, "write the expansion and the ranking as JSON to this file");
   cmd->add_option("--vtu", args->vtu, "write localize.vtu, localize_sensors.vtu and localize.pvd to this directory");
   cmd->callback([args, exit_code] { *exit_code = run_localize(*args); });

@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 
 #include <iostream>
+#include <new>
+#include <stdexcept>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -28,6 +30,16 @@ int main(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    // Inputs too large for the memory are refused with their estimate before it runs out (exit 2);
+    // running out anyway is a failure of the run, as any other resource would be.
+    std::cerr << "error: not enough memory for this run on this machine (a model or an input file too large "
+                 "for it?)\n";
+    return 1;
+  } catch (const std::length_error&) {
+    std::cerr << "error: not enough memory for this run: a size computed from the input exceeds what a vector can "
+                 "hold (a count in an input file too large or negative?)\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

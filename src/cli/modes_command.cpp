@@ -36,6 +36,12 @@ int run_modes(const ModesArgs& args) {
   options.num_modes = args.num_modes > 0 ? args.num_modes : problem.options.num_modes;
   options.max_rigid_modes = problem.expected_rigid_modes();
   options.tolerance = problem.options.tolerance;
+  if (options.num_modes + options.max_rigid_modes > system.num_dofs())
+    throw InputError("--num-modes " + std::to_string(options.num_modes) + ": the model of " + problem.path + " has only " +
+                     std::to_string(system.num_dofs()) + " free DOFs" +
+                     (options.max_rigid_modes ? " (and up to " + std::to_string(options.max_rigid_modes) +
+                                                    " rigid-body modes to find)"
+                                              : ""));
   ModalSolver solver(system.pattern(), options);
   const ModalResult result = solver.solve(K, M);
   if (result.status != EigenStatus::Successful) {
@@ -111,8 +117,9 @@ void register_modes_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
   cmd->add_option("--json", args->json, "write the results as JSON to this file");
   cmd->add_option("--vtu", args->vtu, "write modes.vtu (mesh, blocks, properties, mode shapes), modes_sensors.vtu and modes.pvd to this directory");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")->check(CLI::PositiveNumber);
-  cmd->add_option("--num-modes", args->num_modes, "number of elastic modes (overrides the problem file)")->check(CLI::PositiveNumber);
+  cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
+      ->check(positive_number());
+  cmd->add_option("--num-modes", args->num_modes, "number of elastic modes (overrides the problem file)")->check(positive_number());
   cmd->callback([args, exit_code] { *exit_code = run_modes(*args); });
 }
 

@@ -41,6 +41,7 @@ std::string output_path(const StudyArgs& args, const std::string& name) {
 
 int run_bounds_scaling(const StudyArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   struct Case {
     std::string name;
     bool bounds;
@@ -96,8 +97,9 @@ int run_bounds_scaling(const StudyArgs& args) {
                     {"status", to_string(s.termination)}});
   }
   const std::string csv_path = output_path(args, "bounds_scaling.csv");
-  write_file_atomically(csv_path, csv.str(), {problem.path});
+  write_file_atomically(csv_path, csv.str(), problem.source_files);
   const std::string plot_path = output_path(args, "bounds_scaling.png");
+  check_not_input(plot_path, problem.source_files);
   plot_panels(plot_path, "L-BFGS with and without bounds and scaling: " + problem.name, "iteration",
               {objective_panel, gradient_panel});
   std::printf("histories: %s\nplot: %s\n", csv_path.c_str(), plot_path.c_str());
@@ -107,6 +109,7 @@ int run_bounds_scaling(const StudyArgs& args) {
 
 int run_starts(const StudyArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  require_parameters(problem);
   const int n = static_cast<int>(problem.parameters.size());
   std::printf("%s: calibrations from the problem's start times", problem.path.c_str());
   for (double f : args.factors) std::printf(" %g", f);
@@ -171,17 +174,18 @@ void register_study_command(CLI::App& app, int* exit_code) {
     cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
     cmd->add_option("--out", args->out, "directory for CSV and plots (default: out)");
     cmd->add_option("--json", args->json, "write the study's figures as JSON to this file");
-    cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(CLI::PositiveNumber);
+    cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   };
   auto bounds = std::make_shared<StudyArgs>();
   CLI::App* bs = study->add_subcommand("bounds-scaling", "L-BFGS with/without bounds and scaling (report Figures 2-4)");
   common(bs, bounds.get());
-  bs->add_option("--iterations", bounds->iterations, "iterations per run (default 25)")->check(CLI::PositiveNumber);
+  bs->add_option("--iterations", bounds->iterations, "iterations per run (default 25)")->check(positive_number());
   bs->callback([bounds, exit_code] { *exit_code = run_bounds_scaling(*bounds); });
   auto starts = std::make_shared<StudyArgs>();
   CLI::App* st = study->add_subcommand("starts", "Calibrate from several starts; parameter spread and identifiability");
   common(st, starts.get());
-  st->add_option("--factors", starts->factors, "start = initial x factor, for each factor (default 0.1 10)");
+  st->add_option("--factors", starts->factors, "start = initial x factor, for each factor (default 0.1 10)")
+      ->check(positive_number());
   st->add_option("--method", starts->method, "reduced-lbfgs (default), reduced-gauss-newton or reduced-newton")
       ->check(CLI::IsMember(method_names()));
   st->callback([starts, exit_code] { *exit_code = run_starts(*starts); });

@@ -69,7 +69,7 @@ int run_synth(const SynthArgs& args) {
   // Each --truth is a problem file, a changes file or a change string.
   std::optional<Problem> truth_file;
   std::vector<ModelChange> changes;
-  std::vector<std::string> inputs = {args.problem};
+  std::vector<std::string> inputs = nominal.source_files;
   for (const std::string& t : args.truths) {
     if (!std::filesystem::is_regular_file(t)) {
       if (t.find('=') == std::string::npos)
@@ -83,6 +83,7 @@ int run_synth(const SynthArgs& args) {
     } else {
       if (truth_file) throw InputError("--truth " + t + ": a second truth problem file (" + truth_file->path + " is the first)");
       truth_file = load_problem(t, load);
+      inputs.insert(inputs.end(), truth_file->source_files.begin(), truth_file->source_files.end());
     }
   }
   const TruthModel truth = make_truth(nominal, truth_file ? &*truth_file : nullptr, changes);
@@ -124,17 +125,19 @@ void register_synth_command(CLI::App& app, int* exit_code) {
                   "truth: a problem file, a changes file, or a change such as joint2.krx=3e5 or "
                   "point_mass@top:mass=0.05 (repeatable; default: the nominal model at the parameters' truth values)");
   cmd->add_option("--noise-freq", args->noise_frequency, "relative standard deviation of the frequencies (default 0)")
+      ->check(finite_number())
       ->check(CLI::Range(0.0, 0.2));
   cmd->add_option("--noise-shape", args->noise_shape,
                   "standard deviation of each shape value relative to the shape's largest (default 0)")
+      ->check(finite_number())
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--sensors", args->sensors, "node set measured in x, y and z (default: the problem's sensors)");
   cmd->add_option("--modes", args->modes, "truth-model modes to measure, e.g. 1,2,3 (default: the problem's)")
       ->delimiter(',')
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--seed", args->seed, "random seed (default 1); the same seed gives the same data everywhere");
   cmd->add_option("--refine", args->refine, "mesh refinement factor for the nominal and a truth problem file")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("-o,--output", args->output, "data file to write (YAML)")->required();
   cmd->callback([args, exit_code] { *exit_code = run_synth(*args); });
 }

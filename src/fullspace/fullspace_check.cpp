@@ -42,6 +42,7 @@ double relative(const Vector& analytic, const Vector& difference) {
 
 FullSpaceDerivativeCheck check_fullspace_derivatives(Objective& objective, const Vector& p, double relative_step,
                                                      unsigned seed) {
+  objective.require_parameters(p, "check_fullspace_derivatives");
   const Problem& problem = objective.problem();
   const ParameterScaling scaling(problem.parameters);
   detail::FullSpaceProblem fp(objective, scaling, p);

@@ -115,6 +115,7 @@ ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const 
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("FullSpaceOptions: " + error);
+  objective.require_parameters(p0, "minimize_fullspace");
   if (objective.options().eigenvalue_misfit != ObjectiveOptions::EigenvalueMisfit::Relative)
     throw std::invalid_argument(
         "minimize_fullspace: the objective's eigenvalue_misfit must be Relative (the full-space constraints carry "

@@ -35,8 +35,8 @@ struct Axis {
   }
 };
 
-Axis make_axis(const std::vector<MeshBox>& boxes, int axis, double element_size,
-               double refinement) {
+/// The distinct box faces along one axis, ascending.
+std::vector<double> face_planes(const std::vector<MeshBox>& boxes, int axis) {
   std::vector<double> faces;
   for (const MeshBox& b : boxes) {
     faces.push_back(b.min[axis]);
@@ -45,15 +45,26 @@ Axis make_axis(const std::vector<MeshBox>& boxes, int axis, double element_size,
   std::sort(faces.begin(), faces.end());
   // Faces that differ by rounding only are merged, or they would create sliver elements.
   const double merge_tolerance = 1e-9 * (faces.back() - faces.front());
-  Axis a;
+  std::vector<double> planes;
   for (double f : faces)
-    if (a.planes.empty() || f - a.planes.back() > merge_tolerance) a.planes.push_back(f);
+    if (planes.empty() || f - planes.back() > merge_tolerance) planes.push_back(f);
+  return planes;
+}
+
+/// Elements along an interval between two planes (a double: it may not fit an int).
+double divisions(double length, double element_size, double refinement) {
+  // Without the slack, a ratio such as 0.14/0.02, which computes as 7.000000000000001,
+  // would round up to one division too many.
+  return std::max(1.0, std::ceil(refinement * length / element_size - 1e-9));
+}
+
+Axis make_axis(const std::vector<MeshBox>& boxes, int axis, double element_size,
+               double refinement) {
+  Axis a;
+  a.planes = face_planes(boxes, axis);
   for (size_t k = 0; k + 1 < a.planes.size(); ++k) {
     const double length = a.planes[k + 1] - a.planes[k];
-    // Without the slack, a ratio such as 0.14/0.02, which computes as 7.000000000000001,
-    // would round up to one division too many.
-    const int parts =
-        std::max(1, static_cast<int>(std::ceil(refinement * length / element_size - 1e-9)));
+    const int parts = static_cast<int>(divisions(length, element_size, refinement));
     a.plane_line.push_back(static_cast<int>(a.lines.size()));
     for (int j = 0; j < parts; ++j) a.lines.push_back(a.planes[k] + length * j / parts);
   }
@@ -73,6 +84,36 @@ bool boxes_overlap(const MeshBox& a, const MeshBox& b) {
   for (int axis = 0; axis < 3; ++axis)
     if (!(a.min[axis] < b.max[axis] && b.min[axis] < a.max[axis])) return false;
   return true;
+}
+
+BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type, double element_size,
+                              double refinement) {
+  BoxMeshSize size;
+  size.grid_points = 1;
+  std::array<std::vector<double>, 3> planes;
+  for (int axis = 0; axis < 3; ++axis) {
+    planes[axis] = face_planes(boxes, axis);
+    double lines = 1;
+    for (size_t k = 0; k + 1 < planes[axis].size(); ++k)
+      lines += divisions(planes[axis][k + 1] - planes[axis][k], element_size, refinement);
+    size.grid_points *= lines;
+  }
+  for (const MeshBox& b : boxes) {
+    double nodes = 1;
+    for (int axis = 0; axis < 3; ++axis) {
+      double cells = 0;
+      for (size_t k = 0; k + 1 < planes[axis].size(); ++k) {
+        const double middle = 0.5 * (planes[axis][k] + planes[axis][k + 1]);
+        if (b.min[axis] < middle && middle < b.max[axis])
+          cells += divisions(planes[axis][k + 1] - planes[axis][k], element_size, refinement);
+      }
+      nodes *= cells + 1;
+    }
+    size.nodes += nodes;
+  }
+  // Each hex cell of the grid adds 7 tet10 mid-edge nodes (3 edges, 3 face and 1 body diagonal).
+  if (type == SolidType::Tet10) size.nodes *= 8;
+  return size;
 }
 
 BoxMesh generate_box_mesh(const std::vector<MeshBox>& boxes, int num_blocks, SolidType type,

@@ -21,6 +21,15 @@ struct BoxMesh {
 /// True if the two boxes share a volume (touching faces, edges or corners do not count).
 bool boxes_overlap(const MeshBox& a, const MeshBox& b);
 
+/// The size of the mesh generate_box_mesh would make, computed in floating point without making
+/// it, so that an absurd element size or refinement can be refused before it exhausts the memory.
+struct BoxMeshSize {
+  double nodes = 0;        ///< about (box by box: shared faces count twice), mid-edge nodes included
+  double grid_points = 0;  ///< of the common grid the generator indexes (boxes and the gaps between)
+};
+BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type, double element_size,
+                              double refinement);
+
 /// Meshes non-overlapping boxes on one common grid. Along each axis the grid planes are all
 /// boxes' min and max coordinates, and each interval between planes is divided into
 /// max(1, ceil(refinement * length / element_size)) equal parts, so adjacent boxes share their

@@ -12,8 +12,11 @@ namespace modalcal {
 
 namespace {
 
-// A JSON string is a valid YAML double-quoted scalar: labels and descriptions may hold anything.
-std::string quoted(const std::string& s) { return nlohmann::json(s).dump(); }
+// A JSON string is a valid YAML double-quoted scalar: labels and descriptions may hold anything
+// (bytes that are not UTF-8 become U+FFFD).
+std::string quoted(const std::string& s) {
+  return nlohmann::json(s).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
 
 std::string number(double v) { return format_round_trip(v); }
 

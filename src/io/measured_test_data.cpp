@@ -45,6 +45,7 @@ std::vector<const TestMode*> select_modes(const TestDataSelection& s, const Test
 }  // namespace
 
 void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
+  problem->source_files.push_back(s.path);
   TestData data = read_for(s);
   const std::string conversion = convert_lengths(&data, s.lengths, problem->units);
   const std::vector<const TestMode*> selected = select_modes(s, data);

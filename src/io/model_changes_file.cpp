@@ -3,19 +3,14 @@
 
 #include <filesystem>
 
+#include "io/input_file.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
 
 std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw ProblemError(path, 0, "no such changes or problem file");
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    throw ProblemError(path, e.mark.is_null() ? 0 : e.mark.line + 1, "YAML syntax error: " + e.msg);
-  }
+  const YAML::Node root = detail::load_yaml_file(path, "changes or problem file");
   if (!root.IsMap() || !root["changes"]) return std::nullopt;
   for (const auto& kv : root) {
     const std::string key = kv.first.as<std::string>("");

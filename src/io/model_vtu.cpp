@@ -183,9 +183,9 @@ std::vector<std::string> write_vtu_set(const std::string& directory, const std::
   std::vector<std::string> paths;
   for (const auto& document : documents) {
     paths.push_back((fs::path(directory) / document.first).string());
-    check_not_input(paths.back(), {problem.path});
+    check_not_input(paths.back(), problem.source_files);
   }
-  for (size_t k = 0; k < documents.size(); ++k) write_file_atomically(paths[k], documents[k].second, {problem.path});
+  for (size_t k = 0; k < documents.size(); ++k) write_file_atomically(paths[k], documents[k].second, problem.source_files);
   return paths;
 }
 

@@ -21,10 +21,28 @@ void check_not_input(const std::string& path, const std::vector<std::string>& in
                                   "); choose another output name");
 }
 
+namespace {
+
+/// Writes through an existing target that is not a regular file of its own (/dev/stdout, /dev/null,
+/// a FIFO, a symbolic link), as a shell redirection would: renaming a temporary file onto it
+/// would replace the device or the link with a regular file.
+void write_in_place(const std::string& path, const std::string& content) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (out) out.write(content.data(), static_cast<std::streamsize>(content.size()));
+  out.flush();
+  if (!out) throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
+}
+
+}  // namespace
+
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs) {
   check_not_input(path, inputs);
   std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
+  const fs::file_status status = fs::symlink_status(path, ec);
+  if (fs::exists(status) && !fs::is_regular_file(status)) return write_in_place(path, content);
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec))

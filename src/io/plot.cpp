@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <stdexcept>
 #include <unistd.h>
 
@@ -25,7 +26,8 @@ std::string quoted(const std::string& s) {
 }
 
 /// Runs a gnuplot script that `write_body` completes (after the terminal and output lines; data
-/// files go to the work directory it is given) and renames the rendering onto `path`.
+/// files go to the work directory it is given) and writes the rendering to `path`
+/// (write_file_atomically: a device such as /dev/stdout stays one).
 void render(const std::string& path, int width, int height,
             const std::function<void(std::ostream& script, const fs::path& work)>& write_body) {
   const std::string extension = fs::path(path).extension().string();
@@ -35,9 +37,7 @@ void render(const std::string& path, int width, int height,
     throw std::runtime_error("plot '" + path + "': gnuplot is not installed (Debian: apt-get install gnuplot-nox)");
   const fs::path work = fs::temp_directory_path() / ("modalcal-plot-" + std::to_string(::getpid()));
   fs::create_directories(work);
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const fs::path rendered = dir / ("." + target.filename().string() + ".rendering" + extension);
+  const fs::path rendered = work / ("plot" + extension);
   std::ofstream script(work / "plot.gp");
   script << (extension == ".png" ? "set terminal pngcairo size " : "set terminal svg size ") << width << "," << height
          << " font 'sans,10'\n";
@@ -46,17 +46,17 @@ void render(const std::string& path, int width, int height,
   script.close();
   const std::string command = "gnuplot " + quoted((work / "plot.gp").string()) + " 2>" + quoted((work / "err").string());
   const int status = std::system(command.c_str());
-  std::string error;
+  std::string error, image;
   {
     std::ifstream err(work / "err");
     std::getline(err, error, '\0');
+    std::ifstream in(rendered, std::ios::binary);
+    image.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   }
   fs::remove_all(work);
-  if (status != 0 || !fs::exists(rendered)) {
-    std::remove(rendered.c_str());
-    throw std::runtime_error("plot '" + path + "': gnuplot failed: " + error);
-  }
-  fs::rename(rendered, target);
+  if (status != 0 || image.empty())
+    throw std::runtime_error("plot '" + path + "': gnuplot failed: " + error.substr(0, 200));
+  write_file_atomically(path, image);
 }
 
 /// gnuplot tic list: ("a" 0, "b" 1, ...).

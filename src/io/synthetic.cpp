@@ -1,5 +1,7 @@
 #include "io/synthetic.hpp"
 
+#include <new>
+
 #include "modalcal/synthesis.hpp"
 
 namespace modalcal::detail {
@@ -18,6 +20,8 @@ void synthesize_measured(Problem* problem, const SyntheticSpec& spec) {
     for (MeasuredMode& m : data.modes) m.source_line = spec.source_line;
     problem->measured = std::move(data.modes);
     problem->synthetic_truth = truth.record;
+  } catch (const std::bad_alloc&) {
+    throw;  // not a mistake in the problem file's synthetic section
   } catch (const std::exception& e) {
     fail(e.what());
   }

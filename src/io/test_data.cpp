@@ -8,7 +8,9 @@
 #include <set>
 #include <stdexcept>
 
+#include "io/input_file.hpp"
 #include "io/text_util.hpp"
+#include "modalcal/problem.hpp"
 
 namespace modalcal {
 
@@ -61,6 +63,8 @@ std::vector<long> TestData::node_ids() const {
 }
 
 TestData read_test_data(const std::string& path) {
+  if (const std::string reason = detail::unreadable_reason(path, "test-data file"); !reason.empty())
+    throw ProblemError(path, 0, reason);
   std::string extension = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });

@@ -6,6 +6,7 @@
 namespace modalcal {
 
 GradientCheck check_gradient(Objective& objective, const Vector& p, const GradientCheckOptions& options) {
+  objective.require_parameters(p, "check_gradient");
   GradientCheck check;
   const Evaluation base = objective.evaluate(p, Need::Gradient);
   if (!base.ok) {

@@ -165,6 +165,14 @@ void Objective::add_mode_hessian(const Vector& p, int i, double lambda, const Ve
   *H += 0.5 * (WQ + WQ.transpose()) + c * u.dot(Ju);
 }
 
+void Objective::require_parameters(const Vector& p, const std::string& caller) const {
+  if (num_parameters() == 0)
+    throw std::invalid_argument(caller + ": " + problem_.path + " has no calibration parameters (no 'parameters' section)");
+  if (p.size() != num_parameters())
+    throw std::invalid_argument(caller + ": " + std::to_string(p.size()) + " parameter values for " +
+                                std::to_string(num_parameters()) + " parameters");
+}
+
 Evaluation Objective::evaluate(const Vector& p, Need need) {
   Evaluation e;
   if (p.size() != num_parameters() || !p.allFinite()) {

@@ -9,6 +9,7 @@ namespace modalcal {
 
 Identifiability analyze_identifiability(Objective& objective, const Vector& p, const ParameterScaling& scaling,
                                         double relative_threshold) {
+  objective.require_parameters(p, "analyze_identifiability");
   const Evaluation e = objective.evaluate(p, Need::Jacobian);
   if (!e.ok) throw std::runtime_error("identifiability: evaluation failed: " + e.message);
   const int n = static_cast<int>(p.size());

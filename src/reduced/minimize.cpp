@@ -104,6 +104,7 @@ double parameter_error(const Problem& problem, const Vector& p) {
 ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("ReducedOptions: " + error);
+  objective.require_parameters(p0, "minimize_reduced");
   const auto start = std::chrono::steady_clock::now();
   const int forward_before = objective.forward_solves(), linear_before = objective.linear_solves();
   // Gauss-Newton and Newton share the damped second-order step; they differ in the model matrix.
