@@ -53,6 +53,7 @@
 //
 // Usage: diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]]
 //          [--seed-base B] [--json FILE] [--significance A] [--dry-run] [--only CATEGORY]
+//          [--case-list K,..]   (--help for all)
 // Tuning runs use --seed-base 1000, reporting runs 2000 (docs/benchmarks.md).
 
 #include <sys/resource.h>
@@ -680,8 +681,9 @@ Case draw_case(ProblemContext& ctx, int number, std::uint64_t seed, bool force_c
   const std::vector<Family> in_list = available(kListFamilies), outside = available(kOutsideFamilies);
   std::vector<Family> any = in_list;
   any.insert(any.end(), outside.begin(), outside.end());
-  // An effect whose largest shift stays below half the range's lower end at its bounds (a foam
-  // block's mass, say) is drawn again, at most twice, so that the range is what the case gets.
+  // An effect sized at the bound of its candidate's range (its shift saturates below the target,
+  // e.g. a support already nearly free or a foam block's mass) or below half the range's lower end
+  // is drawn again, at most twice, so that the drawn range is what the cases get.
   auto add_effect = [&](const std::vector<Family>& families, double lo, double hi) {
     int saturated = 0;
     for (int attempt = 0; attempt < 20; ++attempt) {
@@ -693,7 +695,7 @@ Case draw_case(ProblemContext& ctx, int number, std::uint64_t seed, bool force_c
       });
       if (clash) continue;
       size_effect(ctx, &*e);
-      if (e->shift < 0.5 * lo && saturated++ < 2) continue;
+      if ((e->shift < 0.5 * lo || e->u == e->u_max || e->u == e->u_min) && saturated++ < 2) continue;
       c.effects.push_back(*e);
       return;
     }
@@ -810,6 +812,7 @@ struct Outcome {
   bool flagged = false;
   std::vector<std::string> accepted;      // kept
   std::vector<std::string> accepted_values;
+  json accepted_locations = json::array();
   int steps = 0, dropped = 0;
   bool first_right = false, all_found = false;
   int spurious = 0;  // kept effects that match no truth effect
@@ -831,6 +834,7 @@ struct Args {
   MeasurementNoise noise{0.002, 0.02, 1};
   DrawOptions draw;
   bool dry_run = false;
+  std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
   std::string command;
 };
@@ -839,9 +843,10 @@ void usage() {
   std::puts(
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
-      "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--dry-run]\n"
+      "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
       "  --controls adds M control cases per problem after the N drawn ones (cheap false-alarm counts);\n"
+      "  --case-list: run only these case numbers (with the same --cases/--controls: reproduces them);\n"
       "  CATEGORY: control single outside multi below-noise fine-control fine-effect.\n"
       "  Case k of problem j has seed B + 1000 j + k. Tuning runs: --seed-base 1000; reports: 2000.");
 }
@@ -891,6 +896,8 @@ int main(int argc, char** argv) {
       else if (a == "--min-shift") args.draw.min_shift = std::stod(next());
       else if (a == "--max-shift") args.draw.max_shift = std::stod(next());
       else if (a == "--dry-run") args.dry_run = true;
+      else if (a == "--case-list")
+        for (double v : bench::parse_list(next())) args.only_cases.push_back(static_cast<int>(v));
       else if (a == "--only") {
         const std::string key = next();
         for (const auto& [c, w] : kCategoryWeights)
@@ -923,6 +930,14 @@ int main(int argc, char** argv) {
               "(frequency), %g (shape); start: the problem file's initial values\n",
               RankingOptions().refits, args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
+  std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
+              "true parameters against noise-free truth data, J its Jacobian in the parameters (what calibration absorbs, "
+              "first order); lambda* = (sqrt(c) + 1.2816)^2, c = chi2_1 critical value at alpha/N candidates: 90 %% power "
+              "of the first step's Bonferroni test; multi-effect cases: every effect alone\n");
+  std::printf("# sizes: largest noise-free frequency shift drawn log-uniform in [%g, %g] (below noise: [1e-4, 1e-3]), "
+              "value set by secant/bisection on forward solves; part of a block: the truth's block split in two (the "
+              "change grammar cannot say it)\n",
+              args.draw.min_shift, args.draw.max_shift);
   std::fflush(stdout);
 
   json cases_json = json::array();
@@ -959,6 +974,8 @@ int main(int argc, char** argv) {
                 "truth", "flag", "right", "p final", "cpu s", "accepted");
     std::fflush(stdout);
     for (int k = 0; k < n_cases + n_controls; ++k) {
+      if (!args.only_cases.empty() && std::find(args.only_cases.begin(), args.only_cases.end(), k) == args.only_cases.end())
+        continue;
       const std::uint64_t seed = args.seed_base + 1000 * j + static_cast<std::uint64_t>(k);
       const auto t_case = Clock::now();
       const double cpu_case = cpu_seconds();
@@ -1014,6 +1031,8 @@ int main(int argc, char** argv) {
           for (const auto& [cand, value] : kept) {
             o.accepted.push_back(cand->name);
             o.accepted_values.push_back(format("%.4g", value));
+            const std::optional<Vec3> where = effect_location(problem.model, *cand);
+            o.accepted_locations.push_back(where ? json{(*where)[0], (*where)[1], (*where)[2]} : json());
           }
           std::vector<bool> found(c.effects.size(), false);
           for (size_t m = 0; m < kept.size(); ++m) {
@@ -1079,7 +1098,9 @@ int main(int argc, char** argv) {
       for (const EffectSpec& e : c.effects)
         effects.push_back({{"family", family_name(e.family)}, {"name", e.name}, {"change", e.text()},
                            {"in_candidate_list", e.in_list}, {"target_shift", e.target_shift}, {"shift", e.shift},
-                           {"sizing_solves", e.sizing_solves}, {"lambda", e.lambda}});
+                           {"sizing_solves", e.sizing_solves}, {"lambda", e.lambda},
+                           {"location", e.location ? json{(*e.location)[0], (*e.location)[1], (*e.location)[2]} : json()},
+                           {"place_tolerance", e.location ? 2 * element_size_at(ctx, *e.location) + e.region_radius : NAN}});
       cj["truth"] = effects;
       cj["lambda"] = c.lambda_case;
       cj["lambda_star"] = ctx.lambda_star;
@@ -1089,6 +1110,7 @@ int main(int argc, char** argv) {
         cj["verdict"] = o.flagged ? "model-form error" : "no model-form error";
         cj["accepted"] = o.accepted;
         cj["accepted_values"] = o.accepted_values;
+        cj["accepted_locations"] = o.accepted_locations;
         cj["steps"] = o.steps_json;
         cj["first_right_kind_and_place"] = o.first_right;
         cj["all_found"] = o.all_found;
@@ -1152,10 +1174,10 @@ int main(int argc, char** argv) {
   if (args.dry_run) return 0;
   const double a = args.significance;
   std::printf("\n## per category (all problems)\n");
-  std::printf("%-28s %4s %6s %-14s %-14s %-14s %-14s %8s %-14s %9s %8s %8s %4s\n", "category", "n", "detect", "flagged",
+  std::printf("%-34s %4s %6s %-14s %-14s %-14s %-14s %8s %-14s %9s %8s %8s %4s\n", "category", "n", "detect", "flagged",
               "right kind+place", "every effect", "any accepted", "med p", "p > alpha", "med |err|", "wall s", "cpu s", "err");
   auto print_row = [&](const std::string& name, const Row& r, bool effects) {
-    std::printf("%-28s %4d %6d %-14s %-14s %-14s %-14s %8s %-14s %9s %8.1f %8.1f %4d\n", name.c_str(), r.n, r.detectable,
+    std::printf("%-34s %4d %6d %-14s %-14s %-14s %-14s %8s %-14s %9s %8.1f %8.1f %4d\n", name.c_str(), r.n, r.detectable,
                 effects ? pct(r.flagged_detectable, r.detectable).c_str() : pct(r.flagged_all, r.n - r.errors).c_str(),
                 effects ? pct(r.right, r.detectable).c_str() : "-",
                 r.multi_detectable ? pct(r.all_found, r.multi_detectable).c_str() : "-",
