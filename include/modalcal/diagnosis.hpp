@@ -7,8 +7,8 @@
 /// screen again with the accepted effects in the model, until no candidate is significant or,
 /// after the first step, the residual is consistent with the noise. A backward pass then drops any
 /// accepted effect whose own likelihood-ratio test, with the others in the model, is no longer
-/// significant at the stated level. The verdict is one: a model-form error when the residual test
-/// rejects or an effect was accepted.
+/// significant at the stated level. The verdict is one: a model-form error when an accepted
+/// effect is kept or the residual test rejects.
 ///
 /// When the measured data state their noise, every fit here minimizes the chi-square
 /// (noise_weighted()): the calibration is then a maximum-likelihood fit and the ranking's
@@ -151,8 +151,8 @@ struct Diagnosis {
   /// The final parameters: the problem's, then one value per entry of `effects`.
   Vector final_parameters;
   FitState final_fit;  ///< the residual at the end
-  /// The one verdict: the residual test rejects before any effect is added, or an effect was
-  /// accepted (without a stated noise: an effect was accepted).
+  /// The one verdict: an accepted effect survived the backward pass, or the residual at the end
+  /// still fails the test against the noise (without a stated noise: an effect was kept).
   bool model_form_error = false;
   /// Names of the accepted effects the backward pass kept.
   std::vector<std::string> accepted() const;

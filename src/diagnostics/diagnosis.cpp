@@ -286,7 +286,7 @@ std::string recommendation_text(const Diagnosis& d) {
 
 std::string effects_text(const Diagnosis& d) {
   char numbers[200];
-  if (d.steps.empty()) {
+  if (d.accepted().empty()) {
     if (!d.model_form_error)
       return "No model-form error: the calibrated residual is consistent with the stated noise and no candidate "
              "effect explains a significant part of it; nothing needs adding.";
@@ -295,14 +295,15 @@ std::string effects_text(const Diagnosis& d) {
            std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
   }
   std::string text = "Model-form error. Add";
-  for (size_t k = 0; k < d.steps.size(); ++k) {
-    const DiagnosisStep& s = d.steps[k];
+  bool first = true;
+  for (const DiagnosisStep& s : d.steps) {
     const bool dropped = std::any_of(d.dropped.begin(), d.dropped.end(),
                                      [&](const DroppedEffect& x) { return x.name == s.effect.candidate.name; });
     if (dropped) continue;
     std::snprintf(numbers, sizeof numbers, " (%s %.4g -> %.4g)", chi2_text(d.noise_known).c_str(), s.chi2_before,
                   s.effect.chi2_after);
-    text += std::string(k ? "; then " : " ") + s.effect.candidate.name + ": " + s.effect.summary() + numbers;
+    text += std::string(first ? " " : "; then ") + s.effect.candidate.name + ": " + s.effect.summary() + numbers;
+    first = false;
   }
   text += ". ";
   for (const DroppedEffect& x : d.dropped) text += x.name + " was dropped again: the others explain it. ";
@@ -419,8 +420,10 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   d.effects = state.effects;
   d.final_parameters = state.parameters;
   d.final_fit = state.fit;
-  d.model_form_error = !d.steps.empty() || !d.before.test || d.before.test->model_form_error;
-  if (!d.steps.empty()) {
+  // What the backward pass kept decides, not the forward steps: a step whose refit only escaped
+  // a local minimum of the calibration is dropped again, and the residual at the end is noise.
+  d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error;
+  if (!d.accepted().empty()) {
     d.recommended = 0;
     d.after = d.final_fit;
   }
