@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -113,6 +114,13 @@ void require_parameters(const Problem& problem) {
   if (problem.parameters.empty())
     throw InputError("no calibration parameters in " + problem.path +
                      ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
+}
+
+void create_output_directory(const std::string& option, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir))
+    throw InputError(option + " " + dir + ": cannot create the directory" + (ec ? ": " + ec.message() : ""));
 }
 
 void print_warnings(const Problem& problem) {

@@ -15,7 +15,7 @@ bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 
 bool is_delimiter(const std::string& line) { return trim(line) == "-1"; }
 
-std::string excerpt(const std::string& line) {
+std::string line_excerpt(const std::string& line) {
   const std::string t = trim(line);
   return t.size() > 40 ? t.substr(0, 40) + "..." : t;
 }
@@ -41,7 +41,7 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
     const bool ends_well = stop >= s.size() || is_blank(s[stop]) || s[stop] == '+' || s[stop] == '-';
     if (ec != std::errc() || !std::isfinite(v) || !ends_well) {
       const size_t end = line.find_first_of(" \t\r", start);
-      *bad = line.substr(start, end == std::string::npos ? std::string::npos : end - start);
+      *bad = line_excerpt(line.substr(start, end == std::string::npos ? std::string::npos : end - start));
       return false;
     }
     numbers->push_back(v);
@@ -59,7 +59,7 @@ std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::
       continue;
     }
     if (!is_delimiter(lines[i])) {
-      std::string message = "expected '-1', which opens a dataset, found '" + excerpt(lines[i]) + "'";
+      std::string message = "expected '-1', which opens a dataset, found '" + line_excerpt(lines[i]) + "'";
       if (!blocks.empty())
         message += "; did dataset " + std::to_string(blocks.back().number) + " (line " +
                    std::to_string(blocks.back().number_line) +
@@ -75,7 +75,7 @@ std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::
     if (ec != std::errc() || id.empty() || block.number <= 0)
       throw ProblemError(file, i + 1,
                          "expected a dataset number after the '-1' at line " + std::to_string(open + 1) + ", found '" +
-                             excerpt(lines[i]) + "'");
+                             line_excerpt(lines[i]) + "'");
     if (ptr != id.data() + id.size())
       throw ProblemError(file, i + 1,
                          "dataset " + id + " is binary ('" + id + "'), which is not read; export the file as ASCII");
