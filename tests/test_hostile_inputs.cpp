@@ -389,5 +389,44 @@ TEST(HostileInputs, UnwritableOutputDirectoryIsNamedBeforeTheStudyRuns) {
   EXPECT_FALSE(Contains(run.output, "L-BFGS")) << run.output;  // refused before the four runs
 }
 
+// --- 6. nothing wrong is accepted without a word ---
+
+TEST(HostileInputs, WrongTypedSectionsOfAnExtendedFileAreRefusedInThatFile) {
+  const std::string top = WriteTempFile("top.yaml", "extends: base.yaml\nname: top\n");
+  for (const std::string& wrong : {"description: [1, 2]", "name: {a: 1}", "units: [1]"}) {
+    WriteTempFile("base.yaml", wrong + "\n" + BarWithModulus());
+    const CliRun run = RunCli("modes " + top);
+    EXPECT_EQ(run.exit_code, 2) << wrong << "\n" << run.output;
+    EXPECT_CONTAINS(run.output, "base.yaml:1: expected a text value for '");
+  }
+}
+
+TEST(HostileInputs, StartOutsideTheBoundsIsRefusedNotClamped) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  for (const std::string& start : {"--set E=1e9", "--start-factor 1000"}) {
+    const CliRun run = RunCli("calibrate " + problem + " --quiet " + start);
+    EXPECT_EQ(run.exit_code, 2) << start << "\n" << run.output;
+    EXPECT_CONTAINS(run.output, "the start of parameter 'E' (from --params, --set or --start-factor)");
+    EXPECT_CONTAINS(run.output, "lies outside its bounds [10, 100000]");
+  }
+  EXPECT_EQ(RunCli("diagnose " + problem + " --quiet --set E=1").exit_code, 2);
+  // Without bounds there is nothing to clamp to.
+  EXPECT_EQ(RunCli("calibrate " + problem + " --quiet --method reduced-lbfgs --no-bounds --set E=1e6").exit_code, 0);
+}
+
+TEST(HostileInputs, ZeroIterationsOfTheFullSpaceMethodMakeNone) {
+  const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
+  const std::string json = WriteTempFile("report.json", "");
+  const CliRun run = RunCli("calibrate " + problem + " --quiet --max-iterations 0 --json " + json);
+  EXPECT_EQ(run.exit_code, 1) << run.output;  // no result: the start is not a minimum
+  EXPECT_CONTAINS(run.output, "fullspace: MaxIterations");
+  const nlohmann::json report = nlohmann::json::parse(ReadFile(json));
+  EXPECT_EQ(report["status"], "MaxIterations");
+  EXPECT_EQ(report["iterations"], 0);
+  EXPECT_EQ(report["globalization_iterations"], 0);
+  EXPECT_EQ(report["converged"], false);
+  EXPECT_EQ(report["parameters"][0]["final"], 1000);
+}
+
 }  // namespace
 }  // namespace modalcal

@@ -116,6 +116,18 @@ void require_parameters(const Problem& problem) {
                      ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
 }
 
+void require_start_within_bounds(const Problem& problem, const Vector& start) {
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    const double value = start[static_cast<Eigen::Index>(j)];
+    if (value >= q.lower && value <= q.upper) continue;
+    char text[160];
+    std::snprintf(text, sizeof text, "%.6g lies outside its bounds [%.6g, %.6g]", value, q.lower, q.upper);
+    throw InputError("the start of parameter '" + q.name + "' (from --params, --set or --start-factor) " + text +
+                     " in " + problem.path + "; start within them or widen them");
+  }
+}
+
 void create_output_directory(const std::string& option, const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);

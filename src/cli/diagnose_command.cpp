@@ -140,6 +140,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   require_parameters(problem);
   print_warnings(problem);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
+  require_start_within_bounds(problem, start);
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;

@@ -403,18 +403,24 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
   for (const auto& [base, base_path] : bases) {
     current_file_ = base_path;
     const Fields inherited = sections_of(base);
-    for (const Field& f : inherited.items)
+    for (const Field& f : inherited.items) {
+      // A base's own name and description are not inherited, but must be what they claim to be.
+      if (f.key == "name" || f.key == "description") text(f);
       if (!top.find(f.key) && f.key != "name" && f.key != "description" && f.key != "extends") {
         top.items.push_back(f);
         file_of[f.key] = base_path;
       }
+    }
     current_file_ = path_;
   }
   auto enter = [&](const Field& f) { current_file_ = file_of.at(f.key); };
   const Field* name = top.find("name");
   problem_.name = name ? text(*name) : std::filesystem::path(path_).stem().string();
   if (const Field* f = top.find("description")) problem_.description = text(*f);
-  if (const Field* f = top.find("units")) problem_.units = text(*f);
+  if (const Field* f = top.find("units")) {
+    enter(*f);
+    problem_.units = text(*f);
+  }
 
   // Each section only refers to sections read before it.
   using Section = void (Loader::*)(const Field&);
