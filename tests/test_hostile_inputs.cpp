@@ -3,9 +3,11 @@
 // input file is ever overwritten. Each test reproduces one defect found by feeding the program
 // such inputs.
 
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,7 @@
 #include "modalcal/identifiability.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/test_data.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -426,6 +429,56 @@ TEST(HostileInputs, ZeroIterationsOfTheFullSpaceMethodMakeNone) {
   EXPECT_EQ(report["globalization_iterations"], 0);
   EXPECT_EQ(report["converged"], false);
   EXPECT_EQ(report["parameters"][0]["final"], 1000);
+}
+
+// --- 7. real test files ---
+
+TEST(HostileInputs, BinaryFunctionDatasetIsSkippedByItsByteCount) {
+  // An FRF in binary (58b) between two modes, its bytes holding line feeds and a "-1" line.
+  const std::string binary = std::string("\x01\x02\n    -1\n\x00\xff", 12) + std::string(100, '\x7f') + "\n\xfe";
+  char header[120];
+  std::snprintf(header, sizeof header, "    -1\n    58b%6d%6d%12d%12zu%6d%6d%12d%12d\n", 1, 2, 11, binary.size(), 0, 0,
+                0, 0);
+  std::string frf = header;
+  for (int k = 0; k < 11; ++k) frf += "NONE\n";
+  frf += binary + "    -1\n";
+  const std::string sample = testing::SourcePath("tests/data/uff/uff55_translation.uff");
+  const std::string modes = ReadFile(sample);
+  const size_t second = modes.find("    -1\n    -1\n") + 7;
+  const TestData data =
+      read_test_data(WriteTempFile("with_frf.uff", modes.substr(0, second) + frf + modes.substr(second)));
+  const TestData plain = read_test_data(sample);
+  ASSERT_EQ(data.modes.size(), plain.modes.size());
+  const auto frf_entry =
+      std::find_if(data.datasets.begin(), data.datasets.end(), [](const UffDatasetEntry& d) { return d.number == 58; });
+  ASSERT_NE(frf_entry, data.datasets.end());
+  EXPECT_FALSE(frf_entry->read);
+  EXPECT_CONTAINS(frf_entry->note, std::to_string(binary.size()) + " bytes skipped");
+  // The modes after it keep their lines as a text editor counts them.
+  EXPECT_EQ(data.modes[1].line, plain.modes[1].line + static_cast<int>(std::count(frf.begin(), frf.end(), '\n')));
+}
+
+TEST(HostileInputs, ComplexModeWithoutImaginaryPartIsTakenAsItIsWithoutRotation) {
+  std::string text = ReadFile(testing::SourcePath("tests/data/uff/uff55_complex_poma_export.uff"));
+  for (const char* imaginary : {" 9.111111E-02", " 4.111111E-03", "-1.111111E-02"})
+    text.replace(text.find(imaginary), 13, " 0.000000E+00");
+  const TestData data = read_test_data(WriteTempFile("real.uff", text));
+  ASSERT_EQ(data.modes.size(), 1u);
+  for (const std::string& w : data.warnings) EXPECT_FALSE(Contains(w, "rotating it")) << w;
+  EXPECT_FALSE(data.modes[0].from_complex);
+  EXPECT_EQ(*data.modes[0].value(111111, 1), 0.1111111);
+  EXPECT_EQ(*data.modes[0].value(60101, 2), -0.04111111);
+}
+
+TEST(HostileInputs, SynthOnARefinedMeshRecordsTheMeshDifference) {
+  const std::string nominal = WriteTempFile(
+      "nominal.yaml", testing::CantileverBar() + kModulus + "sensors:\n  - {node_set: tip, directions: [y]}\n");
+  const std::string data = std::filesystem::path(nominal).parent_path().string() + "/data.yaml";
+  const CliRun run = RunCli("synth " + nominal + " --modes 1,2 --refine 2 -o " + data);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_FALSE(Contains(run.output, "the nominal model form is right")) << run.output;
+  EXPECT_CONTAINS(run.output, "other differences: mesh: made on the generated mesh with refinement 2");
+  EXPECT_CONTAINS(ReadFile(data), "other_differences: \"mesh: made on the generated mesh with refinement 2");
 }
 
 }  // namespace

@@ -154,7 +154,9 @@ std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& r
   std::string text = "truth of the measured data: " + (truth.source.empty() ? "recorded" : truth.source);
   if (!recorded_in.empty()) text += " (recorded in " + recorded_in + ")";
   text += "\n";
-  if (truth.hidden_effects.empty()) text += "hidden effect: none (the nominal model form is right)\n";
+  if (truth.hidden_effects.empty())
+    text += truth.other_differences.empty() ? "hidden effect: none (the nominal model form is right)\n"
+                                            : "hidden effect: none among the properties\n";
   char line[64];
   for (const ModelEffect& e : truth.hidden_effects) {
     if (std::isinf(e.nominal_value))
