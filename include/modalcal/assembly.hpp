@@ -90,6 +90,12 @@ class ParametricSystem {
   int num_parameters() const { return static_cast<int>(targets_.size()); }
   /// Nominal property values with the parameters substituted.
   Vector property_values(const Vector& p) const;
+  /// Why K(p) may look singular to an eigensolver though it is not, or "": a block so nearly
+  /// incompressible (bulk modulus above 10^4 times the shear modulus, i.e. nu above 0.49995)
+  /// that K is ill-conditioned. For failure messages, whose default suspects are the supports.
+  std::string ill_conditioning(const Vector& p) const;
+  /// A failed modal solve's message at p: the solver's, after ill_conditioning(p) when there is one.
+  std::string failure_message(const Vector& p, const std::string& solver_message) const;
   /// The common sparsity pattern of K and M (full symmetric storage, values meaningless).
   const SparseMatrix& pattern() const { return pattern_; }
 

@@ -118,6 +118,9 @@ class ModalSolver {
   ModalResult solve(const SparseMatrix& K, const SparseMatrix& M);
   const ModalOptions& options() const { return options_; }
   void set_num_modes(int n);
+  /// The most modes (elastic and rigid together) a solve can find: every one of a small model's,
+  /// which is solved densely, else one fewer than the DOFs (Lanczos).
+  int most_modes() const;
   /// Seconds spent in the one-time symbolic analysis.
   double seconds_analyze() const;
   /// The shift the next solve starts from.

@@ -61,7 +61,8 @@
 namespace modalcal {
 
 struct FullSpaceOptions {
-  /// Newton-phase (Ipopt or block SQP) iterations, over all restarts. Range: >= 1.
+  /// Newton-phase (Ipopt or block SQP) iterations, over all restarts. Range: >= 0; 0 evaluates the
+  /// start only, without globalization or Newton step, and ends with MaxIterations.
   int max_iterations = 200;
   /// KKT error (primal and dual infeasibility, complementarity) at which the Newton phase stops:
   /// Ipopt's `tol` and its unscaled constr_viol/dual_inf/compl_inf tolerances; for the block

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -333,6 +334,32 @@ Vector ParametricSystem::property_values(const Vector& p) const {
   for (int j = 0; j < num_parameters(); ++j)
     for (PropertyId id : targets_[j]) theta[id] = p[j];
   return theta;
+}
+
+std::string ParametricSystem::ill_conditioning(const Vector& p) const {
+  const Vector theta = property_values(p);
+  for (const ElementBlock& b : model_.blocks) {
+    const double a = theta[b.modulus_a], m = theta[b.modulus_b];
+    const bool young = b.form == ElasticForm::YoungPoisson;
+    const double bulk_per_shear = young ? 2 * (1 + m) / (3 * (1 - 2 * m)) : a / m;
+    if (!(bulk_per_shear > 1e4)) continue;
+    char what[64], text[320];
+    if (young)
+      std::snprintf(what, sizeof what, "Poisson's ratio %.9g, so near 0.5,", m);
+    else
+      std::snprintf(what, sizeof what, "K = %.3g G", bulk_per_shear);
+    std::snprintf(text, sizeof text,
+                  "block '%.60s' has %s which makes the material nearly incompressible (bulk modulus %.2g times "
+                  "the shear modulus) and K so ill-conditioned that the eigensolver sees zero-frequency modes; use %s",
+                  b.name.c_str(), what, bulk_per_shear, young ? "nu <= 0.499" : "K <= 1000 G");
+    return text;
+  }
+  return "";
+}
+
+std::string ParametricSystem::failure_message(const Vector& p, const std::string& solver_message) const {
+  const std::string cause = ill_conditioning(p);
+  return cause.empty() ? solver_message : cause + " (the solver: " + solver_message + ")";
 }
 
 namespace {

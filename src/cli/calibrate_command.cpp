@@ -92,7 +92,7 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
   if (args.method == "fullspace") {
     if (args.no_bounds) throw InputError("--no-bounds: the full-space method always uses the parameters' bounds");
     FullSpaceOptions options;
-    options.max_iterations = std::max(1, args.max_iterations);
+    options.max_iterations = args.max_iterations;
     options.scaling = scaling;
     options.globalization_iterations = args.globalization;
     options.mode_guard = !args.no_guard;
@@ -229,6 +229,7 @@ int run_calibrate(const CalibrateArgs& args) {
   ObjectiveOptions objective_options;
   objective_options.regularization = args.regularization;
   const Vector p0 = choose_parameters(&problem, args.start) * args.start_factor;
+  if (!args.no_bounds) require_start_within_bounds(problem, p0);
   std::vector<EffectCandidate> effects = enabled_candidates(problem);
   for (const std::string& text : args.add) {
     try {

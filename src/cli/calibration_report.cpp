@@ -98,7 +98,8 @@ std::string csv_cell(const nlohmann::json& entry, const char* key) {
     std::snprintf(buffer, sizeof buffer, "%.10g", v.get<double>());
     return buffer;
   }
-  const std::string text = v.is_string() ? v.get<std::string>() : v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  const std::string text =
+      v.is_string() ? v.get<std::string>() : v.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   if (text.find_first_of(",\"\n") == std::string::npos) return text;
   std::string quoted = "\"";
   for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);

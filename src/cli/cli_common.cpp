@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -115,6 +116,25 @@ void require_parameters(const Problem& problem) {
                      ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
 }
 
+void require_start_within_bounds(const Problem& problem, const Vector& start) {
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    const double value = start[static_cast<Eigen::Index>(j)];
+    if (value >= q.lower && value <= q.upper) continue;
+    char text[160];
+    std::snprintf(text, sizeof text, "%.6g lies outside its bounds [%.6g, %.6g]", value, q.lower, q.upper);
+    throw InputError("the start of parameter '" + q.name + "' (from --params, --set or --start-factor) " + text +
+                     " in " + problem.path + "; start within them or widen them");
+  }
+}
+
+void create_output_directory(const std::string& option, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec || !std::filesystem::is_directory(dir))
+    throw InputError(option + " " + dir + ": cannot create the directory" + (ec ? ": " + ec.message() : ""));
+}
+
 void print_warnings(const Problem& problem) {
   for (const std::string& w : problem.warnings) std::cerr << "warning: " << w << "\n";
 }
@@ -134,7 +154,9 @@ std::string hidden_effect_text(const SyntheticTruth& truth, const std::string& r
   std::string text = "truth of the measured data: " + (truth.source.empty() ? "recorded" : truth.source);
   if (!recorded_in.empty()) text += " (recorded in " + recorded_in + ")";
   text += "\n";
-  if (truth.hidden_effects.empty()) text += "hidden effect: none (the nominal model form is right)\n";
+  if (truth.hidden_effects.empty())
+    text += truth.other_differences.empty() ? "hidden effect: none (the nominal model form is right)\n"
+                                            : "hidden effect: none among the properties\n";
   char line[64];
   for (const ModelEffect& e : truth.hidden_effects) {
     if (std::isinf(e.nominal_value))

@@ -38,6 +38,15 @@ ReducedOptions::Method parse_method(const std::string& name);
 /// commands that vary them: calibrate, check-derivatives, diagnose, the studies).
 void require_parameters(const Problem& problem);
 
+/// \throws InputError naming the first parameter whose start value (from --params, --set or
+/// --start-factor) lies outside its bounds: a bounded calibration would move it onto the bound
+/// without a word.
+void require_start_within_bounds(const Problem& problem, const Vector& start);
+
+/// Creates the output directory `dir` (of option `option`, e.g. "--out") if need be, before any
+/// computation. \throws InputError naming it if it cannot be a directory.
+void create_output_directory(const std::string& option, const std::string& dir);
+
 /// Prints each of problem.warnings (e.g. unmatched test nodes) as "warning: ..." to stderr.
 void print_warnings(const Problem& problem);
 

@@ -275,6 +275,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   for (const std::string* out : {&args.json, &args.plot, &args.write_problem})
     if (!out->empty()) check_not_input(*out, problem.source_files);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
+  require_start_within_bounds(problem, start);
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;

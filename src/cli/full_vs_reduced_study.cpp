@@ -300,12 +300,12 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   require_parameters(problem);
   if (!problem.has_truth())
     throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");
+  create_output_directory("--out", args.out);
   const std::vector<Vector> starts = study_starts(args, problem);
   std::printf("%s: %zu starts (the problem's and %d random, seed %u), methods:", problem.path.c_str(), starts.size(),
               args.starts, args.seed);
   for (const std::string& m : args.methods) std::printf(" %s", m.c_str());
   std::printf("\n");
-  std::filesystem::create_directories(args.out);
   const std::vector<std::vector<Run>> runs = run_all(args, problem, starts);
   const nlohmann::json summary = summarize(args, problem, runs);
   write_json(args.json,

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
 #include <iostream>
 #include <new>
 #include <stdexcept>
@@ -29,6 +30,10 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   } catch (const std::invalid_argument& e) {
     std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // Its what() is "filesystem error: <operation>: <reason> [<path>]".
+    std::cerr << "error: '" << e.path1().string() << "': " << e.code().message() << "\n";
     return 2;
   } catch (const std::bad_alloc&) {
     // Inputs too large for the memory are refused with their estimate before it runs out (exit 2);

@@ -36,16 +36,18 @@ int run_modes(const ModesArgs& args) {
   options.num_modes = args.num_modes > 0 ? args.num_modes : problem.options.num_modes;
   options.max_rigid_modes = problem.expected_rigid_modes();
   options.tolerance = problem.options.tolerance;
-  if (options.num_modes + options.max_rigid_modes > system.num_dofs())
-    throw InputError("--num-modes " + std::to_string(options.num_modes) + ": the model of " + problem.path + " has only " +
-                     std::to_string(system.num_dofs()) + " free DOFs" +
-                     (options.max_rigid_modes ? " (and up to " + std::to_string(options.max_rigid_modes) +
-                                                    " rigid-body modes to find)"
-                                              : ""));
   ModalSolver solver(system.pattern(), options);
+  if (options.num_modes + options.max_rigid_modes > solver.most_modes())
+    throw InputError("--num-modes " + std::to_string(options.num_modes) + ": the model of " + problem.path + " has " +
+                     std::to_string(system.num_dofs()) + " free DOFs, of which at most " +
+                     std::to_string(solver.most_modes()) + " modes can be found" +
+                     (options.max_rigid_modes ? " (up to " + std::to_string(options.max_rigid_modes) +
+                                                    " of them rigid-body modes)"
+                                              : ""));
   const ModalResult result = solver.solve(K, M);
   if (result.status != EigenStatus::Successful) {
-    std::cerr << "error: modal solve failed (" << to_string(result.status) << "): " << result.message << "\n";
+    std::cerr << "error: modal solve failed (" << to_string(result.status)
+              << "): " << system.failure_message(p, result.message) << "\n";
     return 1;
   }
   const std::vector<ModeDescription> modes = describe_modes(system, p, M, result);

@@ -35,13 +35,13 @@ struct StudyArgs {
 };
 
 std::string output_path(const StudyArgs& args, const std::string& name) {
-  std::filesystem::create_directories(args.out);
   return (std::filesystem::path(args.out) / name).string();
 }
 
 int run_bounds_scaling(const StudyArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
+  create_output_directory("--out", args.out);
   struct Case {
     std::string name;
     bool bounds;

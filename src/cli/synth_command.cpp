@@ -86,7 +86,18 @@ int run_synth(const SynthArgs& args) {
       inputs.insert(inputs.end(), truth_file->source_files.begin(), truth_file->source_files.end());
     }
   }
-  const TruthModel truth = make_truth(nominal, truth_file ? &*truth_file : nullptr, changes);
+  TruthModel truth = make_truth(nominal, truth_file ? &*truth_file : nullptr, changes);
+  if (args.refine > 0) {
+    // The data are made on the refined mesh, the problems they serve use their own: the truth
+    // differs from the nominal model in its discretization too.
+    char mesh[200];
+    std::snprintf(mesh, sizeof mesh,
+                  "mesh: made on the generated mesh with refinement %g (synth --refine), not the nominal problem's "
+                  "own mesh",
+                  args.refine);
+    std::string& other = truth.record.other_differences;
+    other += (other.empty() ? "" : "; ") + std::string(mesh);
+  }
 
   SynthesisOptions options;
   options.modes = args.modes.empty() ? modes_of(nominal) : args.modes;

@@ -3,6 +3,7 @@
 #include <Spectra/SymGEigsShiftSolver.h>
 
 #include <algorithm>
+#include <new>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -119,19 +120,9 @@ detail::BlockLanczosOptions block_options(const ModalOptions& options, int wante
   return block;
 }
 
-// Single-vector shift-invert Lanczos (Spectra) on the factorization of K - sigma M.
-bool spectra_eigenpairs(const detail::CholmodFactor& factor, const SparseMatrix& M, double sigma, int wanted,
-                        const ModalOptions& options, ModalResult* result, Eigenpairs* pairs) {
-  const int n = factor.rows();
-  ShiftInvertOperator op(factor);
-  MassOperator bop(M);
-  const int ncv = options.subspace_size > 0 ? options.subspace_size : std::min(n, 2 * wanted + 1);
-  Spectra::SymGEigsShiftSolver<ShiftInvertOperator, MassOperator, Spectra::GEigsMode::ShiftInvert> eigs(
-      op, bop, wanted, ncv, sigma);
-  eigs.init();
-  eigs.compute(Spectra::SortRule::LargestMagn, options.max_iterations, options.tolerance,
-               Spectra::SortRule::SmallestAlge);
-  result->operator_solves += op.solves();
+// Spectra's result: the eigenpairs, or why there are none.
+template <typename Eigs>
+bool spectra_result(Eigs& eigs, const ModalOptions& options, ModalResult* result, Eigenpairs* pairs) {
   if (eigs.info() != Spectra::CompInfo::Successful) {
     result->status = eigs.info() == Spectra::CompInfo::NotConverging ? EigenStatus::NotConverging
                                                                       : EigenStatus::NumericalIssue;
@@ -143,6 +134,34 @@ bool spectra_eigenpairs(const detail::CholmodFactor& factor, const SparseMatrix&
   pairs->lambda = eigs.eigenvalues();
   pairs->vectors = eigs.eigenvectors();
   return true;
+}
+
+// Single-vector shift-invert Lanczos (Spectra) on the factorization of K - sigma M.
+bool spectra_eigenpairs(const detail::CholmodFactor& factor, const SparseMatrix& M, double sigma, int wanted,
+                        const ModalOptions& options, ModalResult* result, Eigenpairs* pairs) {
+  const int n = factor.rows();
+  ShiftInvertOperator op(factor);
+  MassOperator bop(M);
+  const int ncv = options.subspace_size > 0 ? options.subspace_size : std::min(n, 2 * wanted + 1);
+  try {
+    Spectra::SymGEigsShiftSolver<ShiftInvertOperator, MassOperator, Spectra::GEigsMode::ShiftInvert> eigs(
+        op, bop, wanted, ncv, sigma);
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestMagn, options.max_iterations, options.tolerance,
+                 Spectra::SortRule::SmallestAlge);
+    result->operator_solves += op.solves();
+    return spectra_result(eigs, options, result, pairs);
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception&) {
+    // Spectra's own words ("TridiagEigen: eigen decomposition failed") name no cause a user knows.
+    result->operator_solves += op.solves();
+    result->status = EigenStatus::NumericalIssue;
+    result->message =
+        "shift-invert Lanczos broke down on non-finite or wildly scaled values: K or M is so ill-conditioned "
+        "(extreme moduli, densities or stiffnesses?) that the iteration lost all accuracy";
+    return false;
+  }
 }
 
 // One factorization of K - sigma M, then block Lanczos, or Spectra if it is asked for
@@ -289,6 +308,11 @@ ModalSolver::ModalSolver(const SparseMatrix& pattern, const ModalOptions& option
 
 ModalSolver::~ModalSolver() = default;
 
+int ModalSolver::most_modes() const {
+  const int n = impl_->factor.rows();
+  return n <= kDenseLimit ? n : n - 1;
+}
+
 double ModalSolver::seconds_analyze() const { return impl_->factor.seconds_analyze(); }
 
 void ModalSolver::set_num_modes(int n) {
@@ -324,10 +348,12 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
   const double sigma = shift_ < 0 ? shift_ : -1e-6 * trace_ratio;
   result.shift = sigma;
   const int wanted = options_.num_modes + options_.max_rigid_modes;
-  if (wanted > n) {
+  // The dense path finds every mode; Lanczos at most n - 1 (Spectra's nev <= n - 1).
+  if (wanted > most_modes()) {
     result.message = "asked for " + std::to_string(wanted) + " modes (including up to " +
                      std::to_string(options_.max_rigid_modes) + " rigid-body modes) of a model with only " +
-                     std::to_string(n) + " DOFs";
+                     std::to_string(n) + " DOFs" +
+                     (n > kDenseLimit ? " (Lanczos finds at most " + std::to_string(n - 1) + " of them)" : "");
     return result;
   }
   const double rigid_threshold = options_.rigid_tolerance * trace_ratio;

@@ -31,7 +31,7 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (max_iterations < 1) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 1");
+  if (max_iterations < 0) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 0");
   if (!(tolerance > 0 && tolerance < 1)) return bad("tolerance = " + std::to_string(tolerance) + ": must be in (0, 1)");
   if (!(mu_init > 0)) return bad("mu_init = " + std::to_string(mu_init) + ": must be > 0");
   if (globalization_iterations < 0)

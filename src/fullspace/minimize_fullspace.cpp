@@ -169,6 +169,12 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
   const Evaluation initial = objective.evaluate(start_point, Need::Value);
   if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
   summary.initial_objective = summary.final_objective = initial.value;
+  if (options.max_iterations == 0) {
+    summary.newton_solver = to_string(options.newton_solver);
+    summary.newton_status = "not run";
+    summary.mode_check.reason = "not checked: no iteration";
+    return finish(FullSpaceStatus::MaxIterations, "max_iterations = 0: the start evaluated, no iteration made");
+  }
 
   // 1. Globalization: reduced L-BFGS always tracks the paired modes.
   auto globalize_on = [&](Objective& on, const Vector& from, int iterations) {

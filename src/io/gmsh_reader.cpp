@@ -2,6 +2,8 @@
 // element blocks, physical surface, curve and point groups node sets.
 #include <algorithm>
 #include <fstream>
+#include <string>
+#include <vector>
 #include <map>
 #include <mutex>
 #include <unordered_map>
@@ -25,6 +27,7 @@ class GmshSession {
   GmshSession() : lock_(mutex()) {
     gmsh::initialize(0, nullptr, /*readConfigFiles=*/false);
     gmsh::option::setNumber("General.Terminal", 0);  // messages come back as exceptions, not on stdout
+    gmsh::logger::start();                            // and its warnings through the logger
   }
   ~GmshSession() { gmsh::finalize(); }
   GmshSession(const GmshSession&) = delete;
@@ -71,6 +74,32 @@ void require_msh_header(const std::string& path) {
     mesh_error(path, "is not a Gmsh mesh file: it does not start with $MeshFormat" +
                          std::string(first.empty() ? " (it is empty)" : "") +
                          "; a .geo script must be meshed first, e.g. gmsh -3 part.geo -o part.msh");
+}
+
+// Whether the file's last non-blank line closes a section ($EndElements, ...): a file cut short
+// does not, and Gmsh then says only "Error loading".
+bool ends_with_a_section(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+  return last.rfind("$End", 0) == 0;
+}
+
+// Gmsh's error in words that name the cause: its last error alone ("Wrong node index 6") hides
+// the warning before it that explains it ("Skipping duplicate node 5").
+std::string explain_gmsh_error(const std::string& path, const std::string& error) {
+  if (!ends_with_a_section(path))
+    return "the file ends inside a section (its last line is no $End... line): it is probably truncated";
+  std::vector<std::string> log;
+  gmsh::logger::get(log);
+  std::string warnings;
+  for (const std::string& line : log)
+    if (line.rfind("Warning: ", 0) == 0 && warnings.size() < 200)
+      warnings += (warnings.empty() ? "" : "; ") + line.substr(9);
+  if (warnings.find("duplicate node") != std::string::npos)
+    return "a node id is defined twice (" + warnings.substr(0, 200) + "), after which Gmsh stopped at: " + error;
+  return error.substr(0, 200) + (warnings.empty() ? "" : " (Gmsh warnings: " + warnings.substr(0, 200) + ")");
 }
 
 // All nodes of the mesh, ordered by tag.
@@ -220,7 +249,7 @@ RawMesh read_gmsh(const std::string& path) {
     gmsh::open(path);
     return GmshReader(path).read();
   } catch (const std::string& message) {  // Gmsh's API throws its error message
-    mesh_error(path, "Gmsh cannot read it: " + message);
+    mesh_error(path, "Gmsh cannot read it: " + explain_gmsh_error(path, message));
   }
 }
 

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "io/text_util.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal::detail {
@@ -12,7 +13,7 @@ namespace modalcal::detail {
 namespace fs = std::filesystem;
 
 std::string unreadable_reason(const std::string& path, const std::string& what, std::uintmax_t most_bytes) {
-  const std::string quoted = "'" + path + "'";
+  const std::string quoted = "'" + excerpt(path) + "'";
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) return "cannot open the " + what + " " + quoted + ": no such file";

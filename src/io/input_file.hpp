@@ -13,9 +13,10 @@ namespace modalcal::detail {
 /// Problem, data and changes files are written by people or by this program: at most 16 MB.
 constexpr std::uintmax_t kMostYamlBytes = 16000000;
 
-/// Why `path` cannot be read as a `what` (e.g. "problem file"), or "" if it can: it does not
-/// exist (the reason then ends in "no such file"), is a directory or another file that is not a regular one (a device such
-/// as /dev/zero, a FIFO), lies behind a loop of symbolic links, or has more than `most_bytes`.
+/// Why `path` cannot be read as a `what` (e.g. "problem file"), or "" if it can: it does not exist
+/// (the reason then ends in "no such file"), is a directory or another file that is not a regular
+/// one (a device such as /dev/zero, a FIFO), lies behind a loop of symbolic links, or has more
+/// than `most_bytes`.
 std::string unreadable_reason(const std::string& path, const std::string& what,
                               std::uintmax_t most_bytes = UINTMAX_MAX);
 

@@ -29,8 +29,9 @@ void write_truth(std::ostream& out, const SyntheticTruth& truth) {
     out << "  changes:\n";
     for (const std::string& c : truth.changes) out << "    - " << quoted(c) << "\n";
   }
-  out << "  hidden_effects:" << (truth.hidden_effects.empty() ? " []   # none: the nominal model form is right" : "")
-      << "\n";
+  const char* none = truth.other_differences.empty() ? " []   # none: the nominal model form is right"
+                                                     : " []   # none among the properties";
+  out << "  hidden_effects:" << (truth.hidden_effects.empty() ? none : "") << "\n";
   for (const ModelEffect& e : truth.hidden_effects)
     out << "    - {name: " << quoted(e.name) << ", description: " << quoted(e.description) << ", value: " << number(e.value)
         << ", nominal_value: " << (std::isinf(e.nominal_value) ? std::string(".inf") : number(e.nominal_value)) << "}\n";

@@ -1,6 +1,7 @@
 #include "io/measured_test_data.hpp"
 
 #include <algorithm>
+#include <filesystem>
 
 #include "io/text_util.hpp"
 
@@ -13,8 +14,11 @@ TestData read_for(const TestDataSelection& s) {
     return read_test_data(s.path);
   } catch (const ProblemError& e) {
     const std::string context = " (read for 'test_data' at " + s.problem_file + ":" + std::to_string(s.file_line) + ")";
-    if (e.line() == 0)
+    // A file-wide fault (missing, empty, not a universal file) at the problem's line, naming the file.
+    std::error_code ec;
+    if (e.line() == 0 && !std::filesystem::exists(s.path, ec))
       throw ProblemError(s.problem_file, s.file_line, e.message() + " (the path is relative to this file's folder)");
+    if (e.line() == 0) throw ProblemError(s.problem_file, s.file_line, s.path + ": " + e.message());
     throw ProblemError(e.file(), e.line(), e.message() + context);
   }
 }
@@ -43,6 +47,14 @@ std::vector<const TestMode*> select_modes(const TestDataSelection& s, const Test
 }
 
 }  // namespace
+
+std::string unusable_frequency(double hz) {
+  if (!(hz > 0)) return "measured frequencies must be positive";
+  if (hz < 1e-6 || hz > 1e9)
+    return "measured frequencies must lie between 1e-6 and 1e9 Hz (no structure has modes outside, and the "
+           "eigenvalue misfits would overflow); check the unit (Hz) and the exponent";
+  return "";
+}
 
 void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
   problem->source_files.push_back(s.path);
@@ -91,11 +103,10 @@ void measured_from_test_data(const TestDataSelection& s, Problem* problem) {
     MeasuredMode measured;
     measured.label = "test mode " + std::to_string(m->number);
     measured.source_line = s.line;
-    if (!(m->frequency_hz > 0))
+    if (const std::string reason = unusable_frequency(m->frequency_hz); !reason.empty())
       throw ProblemError(s.problem_file, s.line,
                          "mode " + std::to_string(m->number) + " of " + s.path + " (line " + std::to_string(m->line) +
-                             ") has frequency " + number_text(m->frequency_hz) +
-                             " Hz; measured frequencies must be positive");
+                             ") has frequency " + number_text(m->frequency_hz) + " Hz; " + reason);
     measured.frequency_hz = m->frequency_hz;
     measured.shape.resize(static_cast<Eigen::Index>(problem->sensors.size()));
     for (size_t k = 0; k < problem->sensors.size(); ++k) {

@@ -22,6 +22,11 @@ struct TestDataSelection {
   LengthConversion lengths;
 };
 
+/// Why a measured frequency cannot be calibrated against, or "": not positive, or outside 1 µHz to
+/// 1 GHz, where no structure has modes and its eigenvalue (2πf)² and the relative misfits divided
+/// by it overflow or underflow (1e-300 Hz ended in a NaN blamed on "a parameter without bounds").
+std::string unusable_frequency(double hz);
+
 /// Reads the file, converts its lengths, maps its nodes onto the model and sets
 /// problem->sensors (matched nodes × directions that every selected mode has) and
 /// problem->measured (frequency and shape at the sensors, paired by MAC); adds the mapping

@@ -59,6 +59,17 @@ void check_orientation(const std::string& path, const RawMesh& mesh) {
   }
 }
 
+// A coordinate that is not finite would make every element at its node "degenerate".
+void check_finite_coordinates(const std::string& path, const RawMesh& mesh) {
+  for (size_t v = 0; v < mesh.coordinates.size(); ++v)
+    if (!mesh.coordinates[v].allFinite()) {
+      std::ostringstream x;
+      x << "[" << mesh.coordinates[v][0] << ", " << mesh.coordinates[v][1] << ", " << mesh.coordinates[v][2] << "]";
+      mesh_error(path, "node " + std::to_string(mesh.node_ids[v]) + " has a coordinate that is not a finite number " +
+                           x.str() + "; was the mesh exported from a failed computation?");
+    }
+}
+
 void check_unique_ids_and_names(const std::string& path, const RawMesh& mesh) {
   std::map<long, size_t> first_of_id;
   for (size_t v = 0; v < mesh.node_ids.size(); ++v)
@@ -153,6 +164,7 @@ MeshFile read_mesh_file(const std::string& path, std::optional<MeshFileFormat> f
   RawMesh raw = *format == MeshFileFormat::Gmsh ? detail::read_gmsh(path) : detail::read_exodus(path);
   if (raw.blocks.empty()) mesh_error(path, "has no solid elements");
   check_unique_ids_and_names(path, raw);
+  check_finite_coordinates(path, raw);
   check_orientation(path, raw);
   return compact(path, *format, std::move(raw));
 }

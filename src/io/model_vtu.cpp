@@ -185,7 +185,8 @@ std::vector<std::string> write_vtu_set(const std::string& directory, const std::
     paths.push_back((fs::path(directory) / document.first).string());
     check_not_input(paths.back(), problem.source_files);
   }
-  for (size_t k = 0; k < documents.size(); ++k) write_file_atomically(paths[k], documents[k].second, problem.source_files);
+  for (size_t k = 0; k < documents.size(); ++k)
+    write_file_atomically(paths[k], documents[k].second, problem.source_files);
   return paths;
 }
 

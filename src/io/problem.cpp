@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "io/text_util.hpp"
 #include "modalcal/model_change.hpp"
 
 namespace modalcal {
@@ -23,8 +24,13 @@ Vector collect(const std::vector<Parameter>& parameters, Get get) {
 
 }  // namespace
 
+// A net under the excerpts of each message: no error echoes more than about 1000 characters of
+// input, whatever it quotes.
 ProblemError::ProblemError(const std::string& file, int line, const std::string& message)
-    : std::invalid_argument(located(file, line, message)), file_(file), line_(line), message_(message) {}
+    : std::invalid_argument(located(detail::excerpt(file), line, detail::excerpt(message, 1000))),
+      file_(file),
+      line_(line),
+      message_(detail::excerpt(message, 1000)) {}
 
 bool MeasurementNoise::IsValid(std::string* error) const {
   auto check = [&](const char* field, double value, double upper) {

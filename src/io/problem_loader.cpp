@@ -25,6 +25,7 @@
 #include "io/input_file.hpp"
 #include "io/measured_test_data.hpp"
 #include "io/synthetic.hpp"
+#include "io/text_util.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/mesh_file.hpp"
 
@@ -35,7 +36,7 @@ namespace {
 const std::vector<std::string> kInertiaKeys{"Ixx", "Iyy", "Izz"};
 const std::vector<std::string> kDirections{"x", "y", "z"};
 
-std::string quote(const std::string& s) { return "'" + s + "'"; }
+std::string quote(const std::string& s) { return "'" + detail::excerpt(s) + "'"; }
 
 bool ends_with(const std::string& s, const std::string& end) {
   return s.size() >= end.size() && s.compare(s.size() - end.size(), end.size(), end) == 0;
@@ -407,18 +408,24 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
   for (const auto& [base, base_path] : bases) {
     current_file_ = base_path;
     const Fields inherited = sections_of(base);
-    for (const Field& f : inherited.items)
+    for (const Field& f : inherited.items) {
+      // A base's own name and description are not inherited, but must be what they claim to be.
+      if (f.key == "name" || f.key == "description") text(f);
       if (!top.find(f.key) && f.key != "name" && f.key != "description" && f.key != "extends") {
         top.items.push_back(f);
         file_of[f.key] = base_path;
       }
+    }
     current_file_ = path_;
   }
   auto enter = [&](const Field& f) { current_file_ = file_of.at(f.key); };
   const Field* name = top.find("name");
   problem_.name = name ? text(*name) : std::filesystem::path(path_).stem().string();
   if (const Field* f = top.find("description")) problem_.description = text(*f);
-  if (const Field* f = top.find("units")) problem_.units = text(*f);
+  if (const Field* f = top.find("units")) {
+    enter(*f);
+    problem_.units = text(*f);
+  }
 
   // Each section only refers to sections read before it.
   using Section = void (Loader::*)(const Field&);
@@ -1190,7 +1197,10 @@ MeasuredMode Loader::measured_mode(const Field& item, bool in_data_file) const {
   m.source_line = item.line;
   const Field* label = fs.find("label");
   m.label = label ? text(*label) : "mode " + std::to_string(item.item);
-  m.frequency_hz = positive(required(fs, "frequency_hz"));
+  const Field& frequency = required(fs, "frequency_hz");
+  m.frequency_hz = number(frequency);
+  if (const std::string reason = detail::unusable_frequency(m.frequency_hz); !reason.empty())
+    fail(frequency, frequency.name() + " is " + format(m.frequency_hz) + ": " + reason);
   if (const Field* w = fs.find("weight")) m.weight = non_negative(*w);
   if (const Field* w = fs.find("shape_weight")) m.shape_weight = non_negative(*w);
   const Field* shape = fs.find("shape");
@@ -1428,7 +1438,8 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
         !reason.empty())
       throw ProblemError(file, line,
                          "extends " + quote(extends.Scalar()) + ": " + reason +
-                             (ends_with(reason, "no such file") ? " (the path is relative to this file's folder)" : ""));
+                             (ends_with(reason, "no such file") ? " (the path is relative to this file's folder)"
+                                                                : ""));
     std::error_code ec;
     const std::string canonical = std::filesystem::weakly_canonical(base_path, ec).string();
     if (std::find(visited.begin(), visited.end(), canonical) != visited.end())

@@ -16,6 +16,7 @@ namespace modalcal {
 
 namespace {
 
+using detail::excerpt;
 using detail::trim;
 
 const char* const kHeader = "mode,frequency_hz,node,direction,value";
@@ -68,6 +69,8 @@ TestData read_test_csv(const std::string& path) {
   int line_number = 0;
   for (std::string line; std::getline(in, line);) {
     ++line_number;
+    // Excel writes "CSV UTF-8" with a byte-order mark, which is no part of the header.
+    if (line_number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
     const std::string text = trim(line);
     if (text.empty() || text[0] == '#') continue;
     auto fail = [&](const std::string& message) { throw ProblemError(path, line_number, message); };
@@ -75,7 +78,8 @@ TestData read_test_csv(const std::string& path) {
       std::string compact = lower(text);
       compact.erase(std::remove_if(compact.begin(), compact.end(), [](char c) { return c == ' ' || c == '\t'; }),
                     compact.end());
-      if (compact != kHeader) fail("expected the header line '" + std::string(kHeader) + "', found '" + text + "'");
+      if (compact != kHeader)
+        fail("expected the header line '" + std::string(kHeader) + "', found '" + excerpt(text) + "'");
       header_seen = true;
       continue;
     }
@@ -84,13 +88,13 @@ TestData read_test_csv(const std::string& path) {
       fail("expected 5 comma-separated fields (" + std::string(kHeader) + "), found " + std::to_string(f.size()));
     long mode = 0, node = 0;
     double frequency = 0, value = 0;
-    if (!parse_long(f[0], &mode)) fail("mode '" + f[0] + "' is not a whole number");
+    if (!parse_long(f[0], &mode)) fail("mode '" + excerpt(f[0]) + "' is not a whole number");
     if (!parse_double(f[1], &frequency) || frequency < 0)
-      fail("frequency_hz '" + f[1] + "' is not a finite number ≥ 0");
-    if (!parse_long(f[2], &node)) fail("node '" + f[2] + "' is not a whole number");
+      fail("frequency_hz '" + excerpt(f[1]) + "' is not a finite number ≥ 0");
+    if (!parse_long(f[2], &node)) fail("node '" + excerpt(f[2]) + "' is not a whole number");
     const auto direction = std::find(std::begin(kDirections), std::end(kDirections), lower(f[3]));
-    if (direction == std::end(kDirections)) fail("direction '" + f[3] + "' is not one of x, y, z, rx, ry, rz");
-    if (!parse_double(f[4], &value)) fail("value '" + f[4] + "' is not a finite number");
+    if (direction == std::end(kDirections)) fail("direction '" + excerpt(f[3]) + "' is not one of x, y, z, rx, ry, rz");
+    if (!parse_double(f[4], &value)) fail("value '" + excerpt(f[4]) + "' is not a finite number");
     const int component = static_cast<int>(direction - std::begin(kDirections));
 
     const auto [it, is_new] = mode_index.try_emplace(mode, data.modes.size());
@@ -103,11 +107,11 @@ TestData read_test_csv(const std::string& path) {
     }
     TestMode& m = data.modes[it->second];
     if (std::abs(frequency - m.frequency_hz) > 1e-9 * std::max(frequency, m.frequency_hz))
-      fail("mode " + std::to_string(mode) + " has frequency " + f[1] + " Hz here but " + shortest(m.frequency_hz) +
-           " Hz at line " + std::to_string(m.line) + "; give each mode one frequency");
+      fail("mode " + std::to_string(mode) + " has frequency " + excerpt(f[1]) + " Hz here but " +
+           shortest(m.frequency_hz) + " Hz at line " + std::to_string(m.line) + "; give each mode one frequency");
     const auto [row, inserted] = row_of.try_emplace({mode, node, component}, line_number);
     if (!inserted)
-      fail("mode " + std::to_string(mode) + ", node " + std::to_string(node) + ", direction " + f[3] +
+      fail("mode " + std::to_string(mode) + ", node " + std::to_string(node) + ", direction " + excerpt(f[3]) +
            " is given twice (first at line " + std::to_string(row->second) + ")");
     m.values.push_back({node, component, value});
     if (component >= 3) m.values_per_node = 6;

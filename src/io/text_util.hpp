@@ -12,6 +12,14 @@ inline std::string trim(const std::string& s) {
   return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
 }
 
+/// `s` for a message, at most about `most` characters: a longer text (a whole file given where a
+/// name belongs, a 2 MB field) keeps its start and end with the count of what is left out.
+inline std::string excerpt(const std::string& s, size_t most = 200) {
+  if (s.size() <= most) return s;
+  return s.substr(0, most / 2) + " ... (" + std::to_string(s.size() - most) + " characters left out) ... " +
+         s.substr(s.size() - most / 2);
+}
+
 /// A number for messages, with `precision` significant digits.
 inline std::string number_text(double v, int precision = 6) {
   std::ostringstream s;

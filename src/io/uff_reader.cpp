@@ -8,6 +8,7 @@
 #include <cmath>
 #include <complex>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 
@@ -73,7 +74,8 @@ struct ResultKind {
 
 class UffReader {
  public:
-  UffReader(const std::string& path, const std::vector<std::string>& lines) : path_(path), lines_(lines) {
+  UffReader(const std::string& path, const std::vector<std::string>& lines, const std::map<int, long>& binary)
+      : path_(path), lines_(lines), binary_(binary) {
     data_.path = path;
     data_.format = TestData::Format::Uff;
   }
@@ -98,6 +100,8 @@ class UffReader {
   const CoordinateSystem& cartesian_system(int id, const std::string& user, int dataset, int line);
   void resolve_nodes();
   void resolve_modes();
+  /// The mode's values per node, real: as written, or a complex shape made real (with a warning).
+  std::vector<Vector> real_values(PendingMode& m);
   void number_modes_uniquely();
   [[noreturn]] void fail(int dataset, int line, const std::string& message) const {
     throw ProblemError(path_, line, "dataset " + std::to_string(dataset) + ": " + message);
@@ -105,6 +109,7 @@ class UffReader {
 
   std::string path_;
   const std::vector<std::string>& lines_;
+  const std::map<int, long>& binary_;  ///< binary datasets skipped by their byte count (uff_lines)
   TestData data_;
   std::map<int, PendingSystem> pending_systems_;
   std::map<int, int> system_state_;  ///< 1 being resolved, 2 resolved
@@ -114,12 +119,19 @@ class UffReader {
 };
 
 TestData UffReader::read() {
-  const std::vector<UffBlock> blocks = detail::split_uff(path_, lines_);
+  const std::vector<UffBlock> blocks = detail::split_uff(path_, lines_, binary_);
   if (blocks.empty())
     throw ProblemError(path_, 0, "no datasets found (a universal file is a sequence of datasets between '-1' lines)");
   for (const UffBlock& b : blocks) {
     UffRecords r(path_, lines_, b);
     UffDatasetEntry entry{b.number, b.number_line, true, ""};
+    if (b.binary_bytes >= 0) {
+      entry.read = false;
+      entry.note = "binary " + std::string(dataset_name(b.number)) + " (" + std::to_string(b.number) + "b), its " +
+                   std::to_string(b.binary_bytes) + " bytes skipped: not needed for modal test data";
+      data_.datasets.push_back(entry);
+      continue;
+    }
     switch (b.number) {
       case 151:
         read_header(r, b);
@@ -492,31 +504,51 @@ void UffReader::resolve_nodes() {
   }
 }
 
+/// Whether a complex mode has an imaginary part at all: exporters write real modes as complex
+/// with zero imaginary parts, which are real as they are (no rotation to report).
+bool has_imaginary_part(const PendingMode& m) {
+  for (const std::vector<double>& values : m.values)
+    for (size_t k = 1; k < values.size(); k += 2)
+      if (values[k] != 0) return true;
+  return false;
+}
+
+std::vector<Vector> UffReader::real_values(PendingMode& m) {
+  const int n = m.mode.values_per_node;
+  std::vector<Vector> real_values(m.nodes.size(), Vector(n));
+  if (!m.is_complex) {
+    for (size_t k = 0; k < m.nodes.size(); ++k) real_values[k] = Eigen::Map<const Vector>(m.values[k].data(), n);
+    return real_values;
+  }
+  const std::string mode = "mode " + std::to_string(m.mode.number) + " (dataset " + std::to_string(m.mode.dataset) +
+                           ", line " + std::to_string(m.mode.line) + ")";
+  if (!has_imaginary_part(m)) {
+    for (size_t k = 0; k < m.nodes.size(); ++k)
+      for (int c = 0; c < n; ++c) real_values[k][c] = m.values[k][2 * c];
+    if (!m.eigenvalue_note.empty()) data_.warnings.push_back(mode + ": " + m.eigenvalue_note);
+    return real_values;
+  }
+  Eigen::VectorXcd shape(static_cast<Eigen::Index>(m.nodes.size() * n));
+  for (size_t k = 0; k < m.nodes.size(); ++k)
+    for (int c = 0; c < n; ++c)
+      shape[static_cast<Eigen::Index>(k * n + c)] = {m.values[k][2 * c], m.values[k][2 * c + 1]};
+  const RealShape real = best_real_shape(shape);
+  for (size_t k = 0; k < m.nodes.size(); ++k) real_values[k] = real.values.segment(static_cast<Eigen::Index>(k * n), n);
+  m.mode.from_complex = true;
+  m.mode.phase_collinearity = real.collinearity;
+  data_.warnings.push_back(mode + " is complex: made real by rotating it " +
+                           number_text(real.rotation_rad * 180 / M_PI) +
+                           "° to maximize its real part (least-squares best real approximation); phase collinearity "
+                           "MPC = " + number_text(real.collinearity) + " (1 = real up to a phase)" +
+                           (m.eigenvalue_note.empty() ? "" : "; " + m.eigenvalue_note));
+  return real_values;
+}
+
 void UffReader::resolve_modes() {
   std::vector<long> without_geometry;
   for (PendingMode& m : modes_) {
     const int n = m.mode.values_per_node;
-    std::vector<Vector> real_values(m.nodes.size(), Vector(n));
-    if (m.is_complex) {
-      Eigen::VectorXcd shape(static_cast<Eigen::Index>(m.nodes.size() * n));
-      for (size_t k = 0; k < m.nodes.size(); ++k)
-        for (int c = 0; c < n; ++c)
-          shape[static_cast<Eigen::Index>(k * n + c)] = {m.values[k][2 * c], m.values[k][2 * c + 1]};
-      const RealShape real = best_real_shape(shape);
-      for (size_t k = 0; k < m.nodes.size(); ++k)
-        real_values[k] = real.values.segment(static_cast<Eigen::Index>(k * n), n);
-      m.mode.from_complex = true;
-      m.mode.phase_collinearity = real.collinearity;
-      data_.warnings.push_back(
-          "mode " + std::to_string(m.mode.number) + " (dataset " + std::to_string(m.mode.dataset) + ", line " +
-          std::to_string(m.mode.line) + ") is complex: made real by rotating it " +
-          number_text(real.rotation_rad * 180 / M_PI) +
-          "° to maximize its real part (least-squares best real approximation); phase collinearity MPC = " +
-          number_text(real.collinearity) + " (1 = real up to a phase)" +
-          (m.eigenvalue_note.empty() ? "" : "; " + m.eigenvalue_note));
-    } else {
-      for (size_t k = 0; k < m.nodes.size(); ++k) real_values[k] = Eigen::Map<const Vector>(m.values[k].data(), n);
-    }
+    const std::vector<Vector> real_values = this->real_values(m);
     for (size_t k = 0; k < m.nodes.size(); ++k) {
       const auto it = node_index_.find(m.nodes[k]);
       Mat3 to_global = Mat3::Identity();
@@ -574,13 +606,11 @@ void UffReader::number_modes_uniquely() {
 TestData read_uff(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw ProblemError(path, 0, "cannot open the test-data file '" + path + "'");
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    lines.push_back(line);
-  }
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   if (in.bad()) throw ProblemError(path, 0, "cannot read the test-data file '" + path + "'");
-  return UffReader(path, lines).read();
+  std::map<int, long> binary;
+  const std::vector<std::string> lines = detail::uff_lines(text, &binary);
+  return UffReader(path, lines, binary).read();
 }
 
 }  // namespace modalcal

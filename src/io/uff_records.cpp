@@ -15,7 +15,7 @@ bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 
 bool is_delimiter(const std::string& line) { return trim(line) == "-1"; }
 
-std::string excerpt(const std::string& line) {
+std::string line_excerpt(const std::string& line) {
   const std::string t = trim(line);
   return t.size() > 40 ? t.substr(0, 40) + "..." : t;
 }
@@ -41,7 +41,7 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
     const bool ends_well = stop >= s.size() || is_blank(s[stop]) || s[stop] == '+' || s[stop] == '-';
     if (ec != std::errc() || !std::isfinite(v) || !ends_well) {
       const size_t end = line.find_first_of(" \t\r", start);
-      *bad = line.substr(start, end == std::string::npos ? std::string::npos : end - start);
+      *bad = line_excerpt(line.substr(start, end == std::string::npos ? std::string::npos : end - start));
       return false;
     }
     numbers->push_back(v);
@@ -49,7 +49,51 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
   }
 }
 
-std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::string>& lines) {
+namespace {
+
+/// The byte count of a 58b header line ("58b", byte order, float format, ASCII lines, bytes,
+/// ...) and its count of ASCII lines, or false if it is not one.
+bool binary_58_header(const std::string& line, long* ascii_lines, long* bytes) {
+  const std::string t = trim(line);
+  if (t.rfind("58b", 0) != 0) return false;
+  std::vector<double> fields;
+  std::string bad;
+  if (!parse_numbers(t.substr(3), &fields, &bad) || fields.size() < 4) return false;
+  *ascii_lines = static_cast<long>(fields[2]);
+  *bytes = static_cast<long>(fields[3]);
+  return fields[2] >= 0 && fields[3] >= 0 && fields[2] < 1e6 && fields[3] < 1e12;
+}
+
+}  // namespace
+
+std::vector<std::string> uff_lines(const std::string& text, std::map<int, long>* binary) {
+  std::vector<std::string> lines;
+  size_t at = 0;
+  auto next_line = [&] {
+    const size_t end = text.find('\n', at);
+    std::string line = text.substr(at, end == std::string::npos ? std::string::npos : end - at);
+    at = end == std::string::npos ? text.size() : end + 1;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    lines.push_back(line);
+  };
+  while (at < text.size()) {
+    next_line();
+    long ascii = 0, bytes = 0;
+    const bool opens = lines.size() >= 2 && is_delimiter(lines[lines.size() - 2]);
+    if (!opens || !binary_58_header(lines.back(), &ascii, &bytes)) continue;
+    const int header = static_cast<int>(lines.size()) - 1;
+    for (long k = 0; k < ascii && at < text.size(); ++k) next_line();
+    if (static_cast<size_t>(bytes) > text.size() - at) continue;  // not what it claims: refused as binary
+    (*binary)[header] = bytes;
+    lines.resize(lines.size() + static_cast<size_t>(std::count(text.begin() + static_cast<long>(at),
+                                                               text.begin() + static_cast<long>(at) + bytes, '\n')));
+    at += static_cast<size_t>(bytes);
+  }
+  return lines;
+}
+
+std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::string>& lines,
+                                const std::map<int, long>& binary) {
   std::vector<UffBlock> blocks;
   const int n = static_cast<int>(lines.size());
   int i = 0;
@@ -59,7 +103,7 @@ std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::
       continue;
     }
     if (!is_delimiter(lines[i])) {
-      std::string message = "expected '-1', which opens a dataset, found '" + excerpt(lines[i]) + "'";
+      std::string message = "expected '-1', which opens a dataset, found '" + line_excerpt(lines[i]) + "'";
       if (!blocks.empty())
         message += "; did dataset " + std::to_string(blocks.back().number) + " (line " +
                    std::to_string(blocks.back().number_line) +
@@ -75,8 +119,10 @@ std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::
     if (ec != std::errc() || id.empty() || block.number <= 0)
       throw ProblemError(file, i + 1,
                          "expected a dataset number after the '-1' at line " + std::to_string(open + 1) + ", found '" +
-                             excerpt(lines[i]) + "'");
-    if (ptr != id.data() + id.size())
+                             line_excerpt(lines[i]) + "'");
+    if (const auto skipped = binary.find(i); skipped != binary.end())
+      block.binary_bytes = skipped->second;
+    else if (ptr != id.data() + id.size())
       throw ProblemError(file, i + 1,
                          "dataset " + id + " is binary ('" + id + "'), which is not read; export the file as ASCII");
     block.first = ++i;

@@ -1,6 +1,7 @@
 #pragma once
 // Internal: the lines of a universal file split into datasets, and a cursor that reads one
 // dataset record by record, with errors naming the file, the line and the dataset.
+#include <map>
 #include <string>
 #include <vector>
 
@@ -16,11 +17,21 @@ struct UffBlock {
   int number = 0;
   int number_line = 0;     ///< 1-based line of the dataset number
   int first = 0, end = 0;  ///< 0-based indices of its records: [first, end)
+  long binary_bytes = -1;  ///< a binary dataset skipped by its byte count (58b), else -1
 };
 
+/// The lines of a universal file's text (line ends \n or \r\n). The binary data of each
+/// binary function dataset (58b), whose header gives the count of ASCII lines and of bytes after
+/// them, is skipped by that count: it becomes as many empty lines as it holds line feeds (so that
+/// later line numbers stay right), and `binary` maps the 0-based index of its header line to its
+/// byte count.
+std::vector<std::string> uff_lines(const std::string& text, std::map<int, long>* binary);
+
 /// Splits `lines` into datasets. \throws ProblemError for a dataset without its closing "-1",
-/// a line outside any dataset, a missing or non-numeric dataset number, a binary dataset.
-std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::string>& lines);
+/// a line outside any dataset, a missing or non-numeric dataset number, a binary dataset other
+/// than those `binary` lists (uff_lines).
+std::vector<UffBlock> split_uff(const std::string& file, const std::vector<std::string>& lines,
+                                const std::map<int, long>& binary = {});
 
 /// Reads the records of one dataset in order.
 class UffRecords {

@@ -8,6 +8,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include "io/text_util.hpp"
+
 namespace modalcal {
 
 namespace {
@@ -16,7 +18,7 @@ const std::vector<std::string> kInertiaKeys{"Ixx", "Iyy", "Izz"};
 const char* const kAxes[3] = {"x", "y", "z"};
 
 [[noreturn]] void fail(const std::string& text, const std::string& message) {
-  throw std::invalid_argument("change '" + text + "': " + message);
+  throw std::invalid_argument("change '" + detail::excerpt(text) + "': " + message);
 }
 
 std::string join(const std::vector<std::string>& items) {

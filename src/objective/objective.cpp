@@ -167,7 +167,8 @@ void Objective::add_mode_hessian(const Vector& p, int i, double lambda, const Ve
 
 void Objective::require_parameters(const Vector& p, const std::string& caller) const {
   if (num_parameters() == 0)
-    throw std::invalid_argument(caller + ": " + problem_.path + " has no calibration parameters (no 'parameters' section)");
+    throw std::invalid_argument(caller + ": " + problem_.path +
+                                " has no calibration parameters (no 'parameters' section)");
   if (p.size() != num_parameters())
     throw std::invalid_argument(caller + ": " + std::to_string(p.size()) + " parameter values for " +
                                 std::to_string(num_parameters()) + " parameters");
@@ -184,7 +185,7 @@ Evaluation Objective::evaluate(const Vector& p, Need need) {
   e.modal = solver_->solve(ws.K, ws.M);
   ++forward_solves_;
   if (e.modal.status != EigenStatus::Successful) {
-    e.message = "forward solve failed: " + e.modal.message;
+    e.message = "forward solve failed: " + system_->failure_message(p, e.modal.message);
     return e;
   }
   const Matrix& U = e.modal.modes;
