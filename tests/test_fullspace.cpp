@@ -8,9 +8,9 @@
 
 #include <Eigen/LU>
 
-#include "fullspace/block_kkt.hpp"
 #include "fullspace/box_qp.hpp"
 #include "fullspace/fullspace_problem.hpp"
+#include "fullspace/ipopt/ipopt_run.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
 #include "support/random_draws.hpp"
@@ -37,6 +37,25 @@ Problem Identifiable() {
     if (!drop) kept += line + "\n";
   }
   return load_problem(WriteTempFile("identifiable.yaml", kept));
+}
+
+// The full-space point of the forward solution at p, with the adjoint multipliers, as the
+// driver starts its Newton phase.
+void ForwardPoint(Objective& objective, const detail::FullSpaceProblem& fp, const Vector& p, Vector* x, Vector* y) {
+  const Evaluation e = objective.evaluate(p, Need::Gradient);
+  ASSERT_TRUE(e.ok) << e.message;
+  const int l = fp.num_modes(), n = fp.num_dofs();
+  Matrix U(n, l), W(n, l);
+  Vector lambda(l), eta(l);
+  for (int i = 0; i < l; ++i) {
+    const int k = e.pairs[fp.measured_of(i)].model;
+    U.col(i) = e.modal.modes.col(k);
+    W.col(i) = e.adjoint.col(fp.measured_of(i));
+    lambda[i] = e.modal.eigenvalues[k];
+    eta[i] = e.adjoint_eta[fp.measured_of(i)];
+  }
+  *x = fp.pack(U, lambda, p);
+  *y = fp.pack_multipliers(W, eta);
 }
 
 double MaxRelativeError(const Vector& p, const Vector& truth) { return (p.array() / truth.array() - 1).abs().maxCoeff(); }
@@ -67,16 +86,8 @@ TEST(FullSpace, AdjointVariablesAreTheMultipliersAndGiveTheReducedGradient) {
   const ParameterScaling scaling(problem.parameters);
   detail::FullSpaceProblem fp(objective, scaling, p);
   const int l = fp.num_modes(), n = fp.num_dofs();
-  Matrix U(n, l), W(n, l);
-  Vector lambda(l), eta(l);
-  for (int i = 0; i < l; ++i) {
-    const int k = e.pairs[fp.measured_of(i)].model;
-    U.col(i) = e.modal.modes.col(k);
-    W.col(i) = e.adjoint.col(fp.measured_of(i));
-    lambda[i] = e.modal.eigenvalues[k];
-    eta[i] = e.adjoint_eta[fp.measured_of(i)];
-  }
-  const Vector x = fp.pack(U, lambda, p), y = fp.pack_multipliers(W, eta);
+  Vector x, y;
+  ForwardPoint(objective, fp, p, &x, &y);
   Vector c(fp.num_constraints());
   fp.constraints(x.data(), c.data());
   EXPECT_LT(c.cwiseAbs().maxCoeff(), 1e-8);  // the forward solution is feasible
@@ -294,72 +305,6 @@ TEST(FullSpace, ConvergenceOrderIsEstimatedAboveTheRoundingFloor) {
   EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-4, 0.99e-4, 1e-12, 1e-15}), 2.0, 1e-9);
 }
 
-TEST(BlockKkt, StepSolvesTheWholeKktSystemAndCountsEachModesIndex) {
-  // Away from feasibility (perturbed modes and eigenvalues, random multipliers) and for every
-  // parameter kind, the step assembled from the per-mode eliminations and the Schur complement
-  // must satisfy the whole KKT system [W A^T; A 0] (dx, dy) = -(grad L, c).
-  const Problem problem = EveryKind();
-  ObjectiveOptions options;
-  options.regularization = 1e-2;
-  Objective objective(problem, options);
-  const Vector p = problem.initial_values() * 1.3;
-  const Evaluation e = objective.evaluate(p, Need::Value);
-  ASSERT_TRUE(e.ok) << e.message;
-  const ParameterScaling scaling(problem.parameters);
-  detail::FullSpaceProblem fp(objective, scaling, p);
-  const int l = fp.num_modes(), n = fp.num_dofs(), nv = fp.num_variables(), nc = fp.num_constraints();
-  Matrix U(n, l);
-  Vector lambda(l);
-  std::vector<int> model_mode(l);
-  for (int i = 0; i < l; ++i) {
-    model_mode[i] = e.pairs[fp.measured_of(i)].model;
-    U.col(i) = e.modal.modes.col(model_mode[i]);
-    lambda[i] = e.modal.eigenvalues[model_mode[i]];
-  }
-  detail::Uniform random_draws(7);
-  auto unit = [&] { return random_draws(-1, 1); };
-  Vector x = fp.pack(U, lambda, p), y(nc);
-  for (int k = 0; k < nv - fp.num_parameters(); ++k) x[k] *= 1 + 1e-3 * unit();
-  for (int k = 0; k < nc; ++k) y[k] = unit();
-
-  detail::BlockKktSystem kkt(fp);
-  std::string error;
-  ASSERT_TRUE(kkt.build(x, y, &error)) << error;
-  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
-  Vector dx, dy;
-  kkt.step(dq, &dx, &dy);
-
-  std::vector<int> rows(fp.jacobian_layout().nonzeros()), cols(rows.size());
-  fp.jacobian_layout().structure(rows.data(), cols.data());
-  Vector jv(rows.size());
-  fp.jacobian_values(x.data(), jv.data());
-  std::vector<int> hrows(fp.hessian_layout().nonzeros()), hcols(hrows.size());
-  fp.hessian_layout().structure(hrows.data(), hcols.data());
-  Vector hv(hrows.size());
-  fp.hessian_values(x.data(), 1.0, y.data(), hv.data());
-  std::vector<Eigen::Triplet<double, int>> entries;
-  for (size_t k = 0; k < rows.size(); ++k) {
-    entries.emplace_back(nv + rows[k], cols[k], jv[k]);
-    entries.emplace_back(cols[k], nv + rows[k], jv[k]);
-  }
-  for (size_t k = 0; k < hrows.size(); ++k) {
-    entries.emplace_back(hrows[k], hcols[k], hv[k]);
-    if (hrows[k] != hcols[k]) entries.emplace_back(hcols[k], hrows[k], hv[k]);
-  }
-  SparseMatrix K(nv + nc, nv + nc);
-  K.setFromTriplets(entries.begin(), entries.end());
-  Vector rhs(nv + nc), step(nv + nc);
-  rhs << kkt.lagrangian_gradient(), kkt.constraints();
-  step << dx, dy;
-  ASSERT_GT(kkt.constraints().cwiseAbs().maxCoeff(), 1e-6);  // the point is really infeasible
-  const Vector residual = K * step + rhs;
-  EXPECT_LT(residual.cwiseAbs().maxCoeff(), 1e-8 * rhs.cwiseAbs().maxCoeff())
-      << "largest residual at " << [&] { Eigen::Index k; residual.cwiseAbs().maxCoeff(&k); return k; }();
-
-  // Sylvester: B_i has one negative pivot per eigenvalue below lambda_i, plus one of the border.
-  for (int i = 0; i < l; ++i) EXPECT_EQ(kkt.mode_index(i), model_mode[i] + 1) << "full-space mode " << i + 1;
-}
-
 TEST(BoxQp, SatisfiesTheOptimalityConditionsOfRandomConvexProblems) {
   detail::Uniform random_draws(3);
   auto unit = [&] { return random_draws(-1, 1); };
@@ -448,6 +393,53 @@ TEST(FullSpace, BlockEliminationStopsOnAnActiveBoundAsIpoptDoes) {
   const FullSpaceSummary ipopt = minimize_fullspace(ipopt_objective, problem.initial_values(), {});
   ASSERT_TRUE(ipopt.converged()) << ipopt.FullReport();
   EXPECT_LT(MaxRelativeError(block.final, ipopt.final), 1e-6) << block.FullReport() << ipopt.FullReport();
+}
+
+TEST(FullSpace, IpoptTakesTheSameIteratesWithTheStructuredKktSolverAsWithMumps) {
+  // The structured solver changes how Ipopt's KKT systems are solved, not which: the same
+  // inertia and the same steps, so the same iterates as MUMPS on the whole matrix.
+  const Problem problem = Identifiable();
+  const Vector start = problem.initial_values() * 2.0;
+  FullSpaceOptions mumps;
+  mumps.kkt_solver = FullSpaceOptions::KktSolver::Mumps;
+  Objective structured_objective(problem), mumps_objective(problem);
+  const FullSpaceSummary structured = minimize_fullspace(structured_objective, start, {});
+  const FullSpaceSummary reference = minimize_fullspace(mumps_objective, start, mumps);
+  ASSERT_TRUE(structured.converged()) << structured.FullReport();
+  ASSERT_TRUE(reference.converged()) << reference.FullReport();
+  EXPECT_EQ(structured.kkt_solver, "structured");
+  EXPECT_EQ(reference.kkt_solver, "mumps");
+  EXPECT_GT(structured.structured_factorizations, 0);
+  EXPECT_EQ(structured.mumps_factorizations, 0);
+  ASSERT_EQ(structured.kkt_history.size(), reference.kkt_history.size())
+      << structured.FullReport() << reference.FullReport();
+  for (size_t k = 0; k < structured.kkt_history.size(); ++k) {
+    const KktRecord &a = structured.kkt_history[k], &b = reference.kkt_history[k];
+    EXPECT_LT(MaxRelativeError(a.p, b.p), 1e-8) << "iteration " << a.iteration;
+    // Near the minimum J sits on its rounding floor (it even goes negative by a few 1e-16): below
+    // 1e-14 absolute, two values of J do not say anything about the iterates.
+    EXPECT_LE(std::abs(a.objective - b.objective), std::max(1e-8 * std::abs(b.objective), 1e-14))
+        << "iteration " << a.iteration;
+  }
+  EXPECT_LT(MaxRelativeError(structured.final, reference.final), 1e-8);
+}
+
+TEST(FullSpace, IpoptsRestorationPhaseRunsOnTheMumpsFallbackAndReturnsToTheStructuredSolver) {
+  // The restoration phase's KKT matrices have more unknowns than the registered layout: the
+  // layout check sends them to MUMPS, and the regular iterations after it come back.
+  const Problem problem = Identifiable();
+  Objective objective(problem);
+  const Vector p = problem.initial_values() * 1.5;
+  const ParameterScaling scaling(problem.parameters);
+  detail::FullSpaceProblem fp(objective, scaling, p);
+  Vector x0, y0;
+  ForwardPoint(objective, fp, p, &x0, &y0);
+  detail::NewtonPhaseOptions options;
+  options.start_with_restoration = true;
+  const detail::NewtonPhaseResult run = detail::run_ipopt(fp, x0, y0, options, {});
+  EXPECT_TRUE(run.solved) << run.status << ": " << run.message;
+  EXPECT_GT(run.mumps_factorizations, 0);
+  EXPECT_GT(run.structured_factorizations, 0);
 }
 
 }  // namespace

@@ -82,6 +82,16 @@ struct FullSpaceOptions {
   ///    (src/fullspace/block_newton.hpp).
   enum class NewtonSolver { Ipopt, BlockElimination };
   NewtonSolver newton_solver = NewtonSolver::Ipopt;
+  /// Who factors Ipopt's KKT matrices (no effect with BlockElimination, which is structured).
+  ///  - `Structured`: the per-mode block elimination of BlockElimination, inside Ipopt's own
+  ///    interior-point iteration: Ipopt's linear solver interface reaches it through the project's
+  ///    libpardiso.so (src/fullspace/structured_kkt.hpp). The inertia Ipopt tests comes from the
+  ///    m x m reduced Hessian. Matrices of another layout (the restoration phase) and
+  ///    Jacobian-regularized ones go to MUMPS on the whole matrix.
+  ///  - `Mumps`: MUMPS on the whole KKT matrix, Ipopt's usual path (the reference; slow beyond a
+  ///    few thousand DOFs).
+  enum class KktSolver { Structured, Mumps };
+  KktSolver kkt_solver = KktSolver::Structured;
   enum class Hessian { Exact, LimitedMemory };
   /// Exact Lagrangian Hessian (Newton, quadratic locally) or Ipopt's L-BFGS approximation
   /// (Ipopt only: BlockElimination always uses the exact Hessian).
@@ -175,6 +185,8 @@ enum class FullSpaceStatus {
 std::string to_string(FullSpaceStatus status);
 /// "ipopt" or "block", as the CLI's --newton-solver spells them.
 std::string to_string(FullSpaceOptions::NewtonSolver solver);
+/// "structured" or "mumps", as the CLI's --kkt-solver spells them.
+std::string to_string(FullSpaceOptions::KktSolver solver);
 
 /// One escape from a minimum where paired modes cross (FullSpaceOptions::max_crossing_escapes).
 struct CrossingEscape {
@@ -190,6 +202,12 @@ struct FullSpaceSummary {
   FullSpaceStatus status = FullSpaceStatus::ForwardSolveFailed;
   std::string message;
   std::string newton_solver;     ///< to_string(FullSpaceOptions::newton_solver)
+  /// Who solved the KKT systems: "structured" (block elimination: the block solver, or Ipopt
+  /// with KktSolver::Structured) or "mumps" (Ipopt with KktSolver::Mumps).
+  std::string kkt_solver;
+  /// Factorizations by block elimination, and by MUMPS on the whole matrix (with "structured":
+  /// the fallbacks, e.g. in Ipopt's restoration phase; with "mumps" not counted).
+  int structured_factorizations = 0, mumps_factorizations = 0;
   /// Status of the Newton phase's last attempt: Ipopt's return status (e.g. Solve_Succeeded), or
   /// the block solver's (Converged, Maximum_Iterations_Exceeded, Outside_Newton_Region,
   /// Singular_Mode_Block, User_Requested_Stop).

@@ -44,6 +44,7 @@ struct CalibrateArgs {
   bool no_eigenvalues_first = false;
   bool no_crossing_escape = false;
   std::string newton_solver = to_string(FullSpaceOptions().newton_solver);
+  std::string kkt_solver = to_string(FullSpaceOptions().kkt_solver);
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -103,6 +104,8 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     if (args.no_crossing_escape) options.max_crossing_escapes = 0;
     options.newton_solver = args.newton_solver == "block" ? FullSpaceOptions::NewtonSolver::BlockElimination
                                                           : FullSpaceOptions::NewtonSolver::Ipopt;
+    options.kkt_solver = args.kkt_solver == "mumps" ? FullSpaceOptions::KktSolver::Mumps
+                                                     : FullSpaceOptions::KktSolver::Structured;
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -300,11 +303,16 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                 "fullspace: globalize on the whole objective from the start (default: on the eigenvalue terms "
                 "alone first, the shapes still pairing the modes)");
   cmd->add_option("--newton-solver", args->newton_solver,
-                  "fullspace: who solves the Newton phase's KKT systems: ipopt (interior point, MUMPS on the whole "
-                  "KKT matrix) or block (SQP, one factorization per mode and a Schur complement on the parameters; "
-                  "much faster on large meshes)")
+                  "fullspace: the Newton method: ipopt (interior point, Ipopt's filter line search) or block (SQP "
+                  "with an active set on the bounds)")
       ->check(CLI::IsMember({"ipopt", "block"}))
       ->default_str(args->newton_solver);
+  cmd->add_option("--kkt-solver", args->kkt_solver,
+                  "fullspace, ipopt: who factors Ipopt's KKT matrices: structured (one factorization per mode and a "
+                  "Schur complement on the parameters) or mumps (MUMPS on the whole matrix; slow beyond a few "
+                  "thousand DOFs)")
+      ->check(CLI::IsMember({"structured", "mumps"}))
+      ->default_str(args->kkt_solver);
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_flag("--no-crossing-escape", args->no_crossing_escape,
                 "fullspace: accept a minimum where two measured modes pair with model modes in crossed order (default: "

@@ -221,6 +221,8 @@ nlohmann::json summary_json(const Problem& problem, const FullSpaceSummary& summ
           {"newton_solver", summary.newton_solver},
           {"ipopt_status", summary.newton_solver == "ipopt" ? summary.newton_status : ""},
           {"newton_status", summary.newton_status},
+          {"kkt_solver", summary.kkt_solver},
+          {"kkt_factorizations", {{"structured", summary.structured_factorizations}, {"mumps", summary.mumps_factorizations}}},
           {"iterations", summary.iterations},
           {"globalization_iterations", summary.globalization_iterations},
           {"restarts", summary.restarts},

@@ -5,7 +5,11 @@
 namespace modalcal::detail {
 
 BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
-    : problem_(problem), n_(problem.num_dofs()), l_(problem.num_modes()), np_(problem.num_parameters()) {
+    : problem_(problem),
+      n_(problem.num_dofs()),
+      l_(problem.num_modes()),
+      np_(problem.num_parameters()),
+      elimination_(problem.num_modes(), problem.num_parameters(), /*keep_factors=*/false) {
   auto read = [](const SparseLayout& layout, std::vector<int>* rows, std::vector<int>* cols, std::vector<Slot>* slots) {
     rows->resize(layout.nonzeros());
     cols->resize(layout.nonzeros());
@@ -50,7 +54,6 @@ BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
         .push_back(static_cast<int>(k));
   jac_values_.resize(jac_slots_.size());
   hes_values_.resize(hes_slots_.size());
-  modes_.resize(l_);
   mode_index_.assign(l_, 0);
 }
 
@@ -65,87 +68,72 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
   lagrangian_gradient_ = objective_gradient_;
   for (size_t k = 0; k < jac_values_.size(); ++k) lagrangian_gradient_[jac_cols_[k]] += jac_values_[k] * y[jac_rows_[k]];
 
-  reduced_hessian_ = Matrix::Zero(np_, np_);  // W_qq, then the Schur complement
+  Matrix parameter_hessian = Matrix::Zero(np_, np_);
   for (int k : parameter_pairs_) {
     const Slot& s = hes_slots_[k];
-    reduced_hessian_(s.row, s.col) += hes_values_[k];
-    if (s.row != s.col) reduced_hessian_(s.col, s.row) += hes_values_[k];
+    parameter_hessian(s.row, s.col) += hes_values_[k];
+    if (s.row != s.col) parameter_hessian(s.col, s.row) += hes_values_[k];
   }
-  reduced_rhs_ = -lagrangian_gradient_.tail(np_);
+  const Vector parameter_rhs = -lagrangian_gradient_.tail(np_);
+  elimination_.begin(parameter_hessian, &parameter_rhs);
   for (int i = 0; i < l_; ++i) {
-    // Mode i's blocks: B_i = diag(s_i)^{-1} A_i (symmetric: its lower triangle suffices), P_i,
-    // W_i (both triangles) and C_i.
-    const Vector s = problem_.mode_row_scale(i);
-    std::vector<Eigen::Triplet<double, int>> entries;
-    Matrix P = Matrix::Zero(n_ + 1, np_), C = Matrix::Zero(n_ + 1, np_);
-    for (int k : jac_entries_[i]) {
-      const Slot& slot = jac_slots_[k];
-      if (slot.kind == Slot::ParameterColumn)
-        P(slot.row, slot.col) = jac_values_[k];
-      else if (slot.row >= slot.col)
-        entries.emplace_back(slot.row, slot.col, jac_values_[k] / s[slot.row]);
+    Vector f(n_ + 1), e(n_ + 1);  // the right-hand side: -g_i, -c_i
+    for (int a = 0; a <= n_; ++a) {
+      e[a] = -constraints_[problem_.mode_entry(i, a)];
+      f[a] = -lagrangian_gradient_[problem_.mode_entry(i, a)];
     }
-    SparseMatrix B(n_ + 1, n_ + 1), W(n_ + 1, n_ + 1);
-    B.setFromTriplets(entries.begin(), entries.end());
-    entries.clear();
-    for (int k : hes_entries_[i]) {
-      const Slot& slot = hes_slots_[k];
-      const double v = hes_values_[k];
-      if (slot.kind == Slot::ParameterColumn) {
-        C(slot.row, slot.col) += v;
-      } else {
-        entries.emplace_back(slot.row, slot.col, v);
-        if (slot.row != slot.col) entries.emplace_back(slot.col, slot.row, v);
-      }
-    }
-    W.setFromTriplets(entries.begin(), entries.end());
-    entries = {};
     std::string why;
-    if (!factor_.factor(B, &why)) {
+    if (!elimination_.add_mode(i, mode_blocks(i), &f, &e, &why)) {
       if (error)
         *error = "full-space mode " + std::to_string(i + 1) +
                  ": the bordered matrix [[K - lambda M, -M u], [-(M u)^T, 0]] could not be factored (" + why +
                  "): lambda_i is a repeated eigenvalue, or u_i is M-orthogonal to the eigenvector it should approach";
       return false;
     }
-    mode_index_[i] = factor_.negative_pivots();
-    Vector c_i(n_ + 1), g_i(n_ + 1);
-    for (int a = 0; a <= n_; ++a) {
-      c_i[a] = constraints_[problem_.mode_entry(i, a)];
-      g_i[a] = lagrangian_gradient_[problem_.mode_entry(i, a)];
-    }
-    // A_i z = f  <=>  B_i z = f / s.
-    Matrix& aS = modes_[i].a_S;
-    aS.resize(n_ + 1, np_ + 1);
-    aS.col(0) = -c_i;
-    aS.rightCols(np_) = P;
-    aS = s.cwiseInverse().asDiagonal() * aS;
-    factor_.solve(&aS);
-    // A_i^T w = f  <=>  B_i (s w) = f.
-    const Matrix WaS = W * aS;
-    Matrix& bT = modes_[i].b_T;
-    bT.resize(n_ + 1, np_ + 1);
-    bT.col(0) = -g_i - WaS.col(0);
-    bT.rightCols(np_) = C - WaS.rightCols(np_);
-    factor_.solve(&bT);
-    bT = s.cwiseInverse().asDiagonal() * bT;
-
-    const auto a = aS.col(0);
-    const auto S = aS.rightCols(np_);
-    const Matrix CtS = C.transpose() * S;
-    reduced_hessian_ -= CtS + CtS.transpose() - S.transpose() * WaS.rightCols(np_);
-    reduced_rhs_ -= C.transpose() * a + P.transpose() * bT.col(0);
+    mode_index_[i] = elimination_.negative_pivots(i);
   }
-  reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
   return true;
+}
+
+ModeKktBlocks BlockKktSystem::mode_blocks(int i) const {
+  // B_i = diag(s_i)^{-1} A_i (symmetric: its lower triangle suffices), P_i, W_i (both triangles)
+  // and C_i.
+  ModeKktBlocks blocks;
+  blocks.row_scale = problem_.mode_row_scale(i);
+  std::vector<Eigen::Triplet<double, int>> entries;
+  blocks.jacobian_parameters = Matrix::Zero(n_ + 1, np_);
+  blocks.hessian_parameters = Matrix::Zero(n_ + 1, np_);
+  for (int k : jac_entries_[i]) {
+    const Slot& slot = jac_slots_[k];
+    if (slot.kind == Slot::ParameterColumn)
+      blocks.jacobian_parameters(slot.row, slot.col) = jac_values_[k];
+    else if (slot.row >= slot.col)
+      entries.emplace_back(slot.row, slot.col, jac_values_[k] / blocks.row_scale[slot.row]);
+  }
+  blocks.bordered.resize(n_ + 1, n_ + 1);
+  blocks.bordered.setFromTriplets(entries.begin(), entries.end());
+  entries.clear();
+  for (int k : hes_entries_[i]) {
+    const Slot& slot = hes_slots_[k];
+    const double v = hes_values_[k];
+    if (slot.kind == Slot::ParameterColumn) {
+      blocks.hessian_parameters(slot.row, slot.col) += v;
+    } else {
+      entries.emplace_back(slot.row, slot.col, v);
+      if (slot.row != slot.col) entries.emplace_back(slot.col, slot.row, v);
+    }
+  }
+  blocks.hessian.resize(n_ + 1, n_ + 1);
+  blocks.hessian.setFromTriplets(entries.begin(), entries.end());
+  return blocks;
 }
 
 void BlockKktSystem::step(const Vector& dq, Vector* dx, Vector* dy) const {
   dx->resize(problem_.num_variables());
   dy->resize(problem_.num_constraints());
+  Vector xi, yi;
   for (int i = 0; i < l_; ++i) {
-    const Vector xi = modes_[i].a_S.col(0) - modes_[i].a_S.rightCols(np_) * dq;
-    const Vector yi = modes_[i].b_T.col(0) - modes_[i].b_T.rightCols(np_) * dq;
+    elimination_.expand(i, dq, &xi, &yi);
     for (int a = 0; a <= n_; ++a) {
       (*dx)[problem_.mode_entry(i, a)] = xi[a];
       (*dy)[problem_.mode_entry(i, a)] = yi[a];

@@ -70,6 +70,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     std::string error;
     if (!kkt.build(x, y, &error)) return finish("Singular_Mode_Block", false, "block Newton: " + error);
     ++result.hessian_evaluations;
+    ++result.structured_factorizations;
     const double primal = kkt.constraints().lpNorm<Eigen::Infinity>();
     const double dual = dual_infeasibility(kkt.lagrangian_gradient(), x.tail(np), bounds, q0);
     const double f0 = problem.objective(x.data());

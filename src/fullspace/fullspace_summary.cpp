@@ -24,6 +24,10 @@ std::string to_string(FullSpaceOptions::NewtonSolver solver) {
   return solver == FullSpaceOptions::NewtonSolver::Ipopt ? "ipopt" : "block";
 }
 
+std::string to_string(FullSpaceOptions::KktSolver solver) {
+  return solver == FullSpaceOptions::KktSolver::Structured ? "structured" : "mumps";
+}
+
 double KktRecord::kkt_error() const { return std::max({primal_infeasibility, dual_infeasibility, complementarity}); }
 
 bool FullSpaceOptions::IsValid(std::string* error) const {
@@ -63,9 +67,9 @@ std::string CrossingEscape::ToString() const {
 std::string FullSpaceSummary::BriefReport() const {
   char line[400];
   std::snprintf(line, sizeof line,
-                "fullspace: %s (%s %s, mode check %s) after %d Newton iterations (%d restarts) and %d globalization "
+                "fullspace: %s (%s %s, KKT %s, mode check %s) after %d Newton iterations (%d restarts) and %d globalization "
                 "iterations, objective %.6e -> %.6e, %d forward solves, %d KKT solves, order %.2f, %.2f s",
-                to_string(status).c_str(), newton_solver.c_str(), newton_status.c_str(), mode_check.passed ? "passed" : "failed", iterations,
+                to_string(status).c_str(), newton_solver.c_str(), newton_status.c_str(), kkt_solver.c_str(), mode_check.passed ? "passed" : "failed", iterations,
                 restarts, globalization_iterations, initial_objective, final_objective, forward_solves, kkt_solves,
                 convergence_order, seconds);
   return line;
@@ -76,6 +80,9 @@ std::string FullSpaceSummary::FullReport() const {
   if (!mode_check.passed && !mode_check.reason.empty()) out += "mode check: " + mode_check.reason + "\n";
   for (const CrossingEscape& escape : crossing_escapes) out += "crossing escape: " + escape.ToString() + "\n";
   char line[240];
+  std::snprintf(line, sizeof line, "KKT factorizations: %d by block elimination, %d by MUMPS on the whole matrix\n",
+                structured_factorizations, mumps_factorizations);
+  out += line;
   std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Newton phase %.2f s, mode guard %.2f s, total %.2f s\n",
                 num_unknowns, num_constraints, newton_seconds, guard_seconds, seconds);
   out += line;

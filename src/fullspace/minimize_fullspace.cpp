@@ -166,6 +166,9 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     return summary;
   };
 
+  const bool structured = options.newton_solver == FullSpaceOptions::NewtonSolver::BlockElimination ||
+                          options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
+  summary.kkt_solver = to_string(structured ? FullSpaceOptions::KktSolver::Structured : FullSpaceOptions::KktSolver::Mumps);
   const Evaluation initial = objective.evaluate(start_point, Need::Value);
   if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
   summary.initial_objective = summary.final_objective = initial.value;
@@ -292,6 +295,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
       newton.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
       newton.derivative_test = options.ipopt_derivative_test;
       newton.print_level = options.print_level;
+      newton.structured_kkt = options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
       const Clock::time_point newton_start = Clock::now();
       run = options.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
                 ? detail::run_ipopt(fp, x0, y0, newton, callback)
@@ -299,6 +303,8 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
       summary.newton_seconds += seconds_since(newton_start);
       summary.iterations += run.iterations;
       summary.kkt_solves += run.hessian_evaluations;
+      summary.structured_factorizations += run.structured_factorizations;
+      summary.mumps_factorizations += run.mumps_factorizations;
       summary.newton_status = run.status;
       if (run.outside_newton_region && summary.restarts < options.max_restarts &&
           summary.iterations < options.max_iterations) {

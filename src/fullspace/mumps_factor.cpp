@@ -96,6 +96,8 @@ bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error)
   return false;
 }
 
+void MumpsSymmetricFactor::set_pivot_threshold(double threshold) { state_->id.cntl[0] = threshold; }
+
 int MumpsSymmetricFactor::negative_pivots() const { return infog(state_->id, 12); }
 
 void MumpsSymmetricFactor::solve(Matrix* rhs) {

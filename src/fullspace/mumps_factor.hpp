@@ -22,6 +22,10 @@ class MumpsSymmetricFactor {
   /// (entries above the diagonal are ignored). Returns false with `error` naming MUMPS's code and
   /// its likely cause (singular, out of memory).
   bool factor(const SparseMatrix& lower, std::string* error);
+  /// MUMPS's relative pivot threshold CNTL(1) for later factorizations (default: MUMPS's, 0.01
+  /// for symmetric matrices). Larger values count the inertia of saddle-point matrices more
+  /// reliably at the price of more delayed pivots. Range: [0, 0.5].
+  void set_pivot_threshold(double threshold);
   /// Number of negative pivots of the last factorization (the inertia, Sylvester).
   int negative_pivots() const;
   /// Solves A X = B for every column of B, in place.

@@ -16,6 +16,11 @@ struct NewtonPhaseOptions {
   double mu_init = 1e-9;        ///< Ipopt only
   bool exact_hessian = true;    ///< Ipopt only (the block solver always uses the exact Hessian)
   bool derivative_test = false; ///< Ipopt only
+  /// Ipopt only: its KKT systems by the structured solver (fullspace/structured_kkt.hpp) rather
+  /// than MUMPS on the whole matrix.
+  bool structured_kkt = true;
+  /// Ipopt only, for tests: begin in Ipopt's feasibility restoration phase.
+  bool start_with_restoration = false;
   int print_level = 0;
 };
 
@@ -42,6 +47,9 @@ struct NewtonPhaseResult {
   double objective = 0;
   int iterations = 0;
   int hessian_evaluations = 0;  ///< = Newton (KKT) systems
+  /// KKT factorizations by block elimination and by MUMPS on the whole matrix (Ipopt: every
+  /// inertia correction is one more; the block solver counts one structured per system).
+  int structured_factorizations = 0, mumps_factorizations = 0;
   std::string message;      ///< for failures: what went wrong and what it likely means
 };
 

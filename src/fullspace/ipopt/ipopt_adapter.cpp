@@ -13,8 +13,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "fullspace/ipopt/ipopt_run.hpp"
+#include "fullspace/structured_kkt.hpp"
 
 namespace modalcal::detail {
 
@@ -188,6 +190,10 @@ class CalibrationTnlp : public Ipopt::TNLP {
 NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const Vector& y0, const NewtonPhaseOptions& options,
                          const NewtonCallback& callback) {
   NewtonPhaseResult result;
+  // Declared before the application: Ipopt's solver instances must not outlive the registration.
+  KktFactorizationCounts counts;
+  std::optional<StructuredKktScope> structured;
+  if (options.structured_kkt) structured.emplace(problem, &counts);
   Ipopt::SmartPtr<Ipopt::TNLP> tnlp = new CalibrationTnlp(problem, x0, y0, options.mu_init, callback, &result);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   Ipopt::OptionsList& o = *app->Options();
@@ -201,7 +207,10 @@ NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const V
   // The problem is nondimensionalized by FullSpaceProblem; Ipopt's gradient-based scaling
   // would rescale it again depending on the start.
   o.SetStringValue("nlp_scaling_method", "none");
-  o.SetStringValue("linear_solver", "mumps");
+  // `pardiso` is the structured solver (structured_kkt.hpp, through libpardiso.so); it reads the
+  // KKT blocks as the problem defines them, so Ipopt must not rescale the matrix.
+  o.SetStringValue("linear_solver", options.structured_kkt ? "pardiso" : "mumps");
+  o.SetStringValue("linear_system_scaling", "none");
   // MUMPS's default pivot tolerance (1e-6) accepts pivots small enough to miscount the inertia
   // of these saddle-point systems (one spurious negative eigenvalue per mode was seen), and Ipopt
   // then regularizes the Hessian by up to 1e2 and stalls. A tolerance of 0.1 costs little fill.
@@ -213,6 +222,7 @@ NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const V
   o.SetNumericValue("warm_start_bound_push", 1e-9);
   o.SetNumericValue("warm_start_bound_frac", 1e-9);
   o.SetNumericValue("warm_start_mult_bound_push", 1e-12);
+  if (options.start_with_restoration) o.SetStringValue("start_with_resto", "yes");
   if (options.derivative_test) {
     o.SetStringValue("derivative_test", options.exact_hessian ? "second-order" : "first-order");
     o.SetNumericValue("derivative_test_perturbation", 1e-6);
@@ -220,6 +230,8 @@ NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const V
   Ipopt::ApplicationReturnStatus status = app->Initialize();
   if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(tnlp);
   result.status = status_name(status);
+  result.structured_factorizations = counts.structured;
+  result.mumps_factorizations = counts.mumps;
   result.solved = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
   result.stopped_by_callback = status == Ipopt::User_Requested_Stop;
   result.max_iterations = status == Ipopt::Maximum_Iterations_Exceeded;

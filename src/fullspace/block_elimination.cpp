@@ -1,0 +1,88 @@
+#include "fullspace/block_elimination.hpp"
+
+#include <stdexcept>
+
+namespace modalcal::detail {
+
+BlockElimination::BlockElimination(int num_modes, int num_parameters, bool keep_factors)
+    : np_(num_parameters), keep_factors_(keep_factors), modes_(num_modes), negative_pivots_(num_modes, 0) {
+  if (!keep_factors_) shared_factor_ = std::make_unique<MumpsSymmetricFactor>();
+}
+
+BlockElimination::~BlockElimination() = default;
+
+void BlockElimination::begin(const Matrix& parameter_hessian, const Vector* parameter_rhs) {
+  reduced_hessian_ = parameter_hessian;
+  added_ = 0;
+  has_rhs_ = parameter_rhs != nullptr;
+  reduced_rhs_ = has_rhs_ ? *parameter_rhs : Vector();
+}
+
+Matrix BlockElimination::eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right,
+                                   Matrix* left) {
+  // A z = e <=> B z = e / s;  A^T w = g <=> B (s w) = g.
+  const Vector inverse_scale = blocks.row_scale.cwiseInverse();
+  *right = inverse_scale.asDiagonal() * (*right);
+  factor.solve(right);
+  *left -= blocks.hessian * (*right);
+  factor.solve(left);
+  *left = inverse_scale.asDiagonal() * (*left);
+  // With right = [a, S] and left = [b, T]: C^T S + P^T T = C^T S + S^T (C - W S) (as T = A^{-T}
+  // (C - W S) and P = A S), the mode's part of H; C^T a + P^T b its part of h.
+  return blocks.hessian_parameters.transpose() * (*right) + blocks.jacobian_parameters.transpose() * (*left);
+}
+
+bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, const Vector* e, std::string* error) {
+  Mode& mode = modes_[i];
+  if (keep_factors_ && !mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
+  MumpsSymmetricFactor& factor = keep_factors_ ? *mode.factor : *shared_factor_;
+  if (!factor.factor(blocks.bordered, error)) return false;
+  negative_pivots_[i] = factor.negative_pivots();
+  const int n1 = static_cast<int>(blocks.row_scale.size());
+  const int rhs = has_rhs_ && f && e ? 1 : 0;
+  Matrix right(n1, rhs + np_), left(n1, rhs + np_);
+  if (rhs) {
+    right.col(0) = *e;
+    left.col(0) = *f;
+  }
+  right.rightCols(np_) = blocks.jacobian_parameters;
+  left.rightCols(np_) = blocks.hessian_parameters;
+  const Matrix reduction = eliminate(blocks, factor, &right, &left);
+  reduced_hessian_ -= reduction.rightCols(np_);
+  mode.S = right.rightCols(np_);
+  mode.T = left.rightCols(np_);
+  if (rhs) {
+    reduced_rhs_ -= reduction.col(0);
+    mode.a = right.col(0);
+    mode.b = left.col(0);
+  }
+  if (++added_ == static_cast<int>(modes_.size())) reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
+  if (keep_factors_) {
+    blocks.bordered = SparseMatrix();  // in the factor now
+    mode.blocks = std::move(blocks);
+  }
+  return true;
+}
+
+void BlockElimination::expand(int i, const Vector& dq, Vector* dx, Vector* dy) const {
+  const Mode& mode = modes_[i];
+  *dx = mode.a - mode.S * dq;
+  *dy = mode.b - mode.T * dq;
+}
+
+void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
+                             const std::function<void(Matrix*)>& solve_reduced) {
+  if (!keep_factors_) throw std::logic_error("BlockElimination::solve without kept factors");
+  for (size_t i = 0; i < modes_.size(); ++i)
+    *fq -= eliminate(modes_[i].blocks, *modes_[i].factor, &(*e)[i], &(*f)[i]);  // e_i -> a_i, f_i -> b_i
+  solve_reduced(fq);
+  for (size_t i = 0; i < modes_.size(); ++i) {
+    Matrix& a = (*e)[i];
+    Matrix& b = (*f)[i];
+    a -= modes_[i].S * (*fq);  // dx_i
+    b -= modes_[i].T * (*fq);  // dy_i
+    a.swap(b);                 // f_i <- dx_i, e_i <- dy_i
+  }
+}
+
+}  // namespace modalcal::detail

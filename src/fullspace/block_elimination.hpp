@@ -1,0 +1,93 @@
+#pragma once
+// Internal: block elimination of a full-space KKT system, the one piece of linear algebra shared
+// by the block SQP (block_kkt.hpp) and the structured KKT solver Ipopt calls
+// (ipopt/structured_kkt.hpp). The constraint Jacobian is block diagonal over the modes apart
+// from the parameter columns, and so is the Lagrangian Hessian apart from the parameter rows.
+// With, for mode i (local unknowns x_i = (u~_i, t_i), rows (r_i, n_i)), A_i = dc_i/dx_i,
+// P_i = dc_i/dq, W_i = d2L/dx_i^2, C_i = d2L/dx_i dq, the KKT system with right-hand side
+// (f_i, e_i, f_q)
+//
+//   W_i dx_i + C_i dq + A_i^T dy_i = f_i,   A_i dx_i + P_i dq = e_i,
+//   sum_i (C_i^T dx_i + P_i^T dy_i) + W_qq dq = f_q
+//
+// gives dx_i = a_i - S_i dq, dy_i = b_i - T_i dq with
+//   a_i = A_i^{-1} e_i,  S_i = A_i^{-1} P_i,  b_i = A_i^{-T} (f_i - W_i a_i),  T_i = A_i^{-T} (C_i - W_i S_i),
+// and the m x m reduced (Schur) system H dq = h with
+//   H = W_qq - sum_i (C_i^T S_i + S_i^T C_i - S_i^T W_i S_i),   h = f_q - sum_i (C_i^T a_i + P_i^T b_i).
+// H = Z^T W Z on the null space Z = [-S; I] of the constraint Jacobian, so the KKT matrix has
+// the inertia of the whole KKT matrix is that of H plus n_c positive and n_c negative
+// eigenvalues (n_c constraints; Gould 1985): Ipopt's inertia test is a test on an m x m matrix.
+// A_i = diag(s_i) B_i with B_i the symmetric bordered eigen-matrix, so one symmetric indefinite
+// factorization per mode serves A_i and A_i^T. Cost per mode: that factorization and 2 (m + 1)
+// solves.
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fullspace/mumps_factor.hpp"
+#include "modalcal/types.hpp"
+
+namespace modalcal::detail {
+
+/// Mode i's blocks, in local indices 0..n (n: the eigenvalue unknown / normalization row).
+struct ModeKktBlocks {
+  SparseMatrix bordered;     ///< B_i, lower triangle (entries above the diagonal are ignored)
+  Vector row_scale;          ///< s_i: A_i = diag(s_i) B_i
+  SparseMatrix hessian;      ///< W_i, both triangles
+  Matrix hessian_parameters; ///< C_i, (n + 1) x m
+  Matrix jacobian_parameters;///< P_i, (n + 1) x m
+};
+
+class BlockElimination {
+ public:
+  /// `keep_factors`: keep every mode's factorization and blocks so that solve() can be called
+  /// for any right-hand side after the elimination (memory: one factor per mode); without it
+  /// only the right-hand side given to add_mode() is reduced, and one factor is held at a time.
+  BlockElimination(int num_modes, int num_parameters, bool keep_factors);
+  ~BlockElimination();
+
+  /// Starts an elimination with H = W_qq and h = f_q (may be null).
+  void begin(const Matrix& parameter_hessian, const Vector* parameter_rhs);
+  /// Factors mode i's bordered block and adds its part of H; with (f_i, e_i) also its part of
+  /// h and the a_i, b_i that expand() uses. False with `error` (MUMPS's words) when B_i is
+  /// singular.
+  bool add_mode(int i, ModeKktBlocks blocks, const Vector* f, const Vector* e, std::string* error);
+  /// Negative pivots of B_i (its inertia, Sylvester).
+  int negative_pivots(int i) const { return negative_pivots_[i]; }
+
+  /// H, symmetrized, once every mode is added.
+  const Matrix& reduced_hessian() const { return reduced_hessian_; }
+  const Vector& reduced_rhs() const { return reduced_rhs_; }
+  /// Mode i's (dx_i, dy_i) for a parameter step dq, for the right-hand side given to add_mode().
+  void expand(int i, const Vector& dq, Vector* dx, Vector* dy) const;
+
+  /// Right-hand sides of the whole system, per mode (f_i, e_i: (n + 1) x k) and for q (f_q,
+  /// m x k), replaced by the solution (dx_i, dy_i, dq); `solve_reduced` solves H dq = h for the
+  /// k columns of h in place. Requires keep_factors.
+  void solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
+             const std::function<void(Matrix*)>& solve_reduced);
+
+ private:
+  struct Mode {
+    Matrix S, T;  // (n + 1) x m
+    Vector a, b;  // for add_mode's right-hand side
+    std::unique_ptr<MumpsSymmetricFactor> factor;  // keep_factors
+    ModeKktBlocks blocks;                          // keep_factors (without B_i)
+  };
+  // right = [e ...] -> A^{-1} right; left = [f ...] -> A^{-T} (left - W A^{-1} right), column by
+  // column; returns C^T right + P^T left (the columns' part of h, or of H).
+  static Matrix eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right, Matrix* left);
+  int np_;
+  bool keep_factors_;
+  std::vector<Mode> modes_;
+  std::vector<int> negative_pivots_;
+  std::unique_ptr<MumpsSymmetricFactor> shared_factor_;  // without keep_factors
+  Matrix reduced_hessian_;
+  Vector reduced_rhs_;
+  bool has_rhs_ = false;
+  int added_ = 0;
+};
+
+}  // namespace modalcal::detail

@@ -1,0 +1,269 @@
+#include "fullspace/structured_kkt.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <new>
+
+#include "fullspace/block_elimination.hpp"
+#include "fullspace/ipopt/pardiso_trampoline.h"
+#include "fullspace/mumps_factor.hpp"
+
+namespace modalcal::detail {
+
+namespace {
+
+struct Registration {
+  const FullSpaceProblem* problem = nullptr;
+  KktFactorizationCounts* counts = nullptr;
+};
+thread_local const Registration* current_registration = nullptr;
+
+// What one stored KKT entry is in the registered layout (local indices as in ModeKktBlocks).
+struct Place {
+  enum Kind : unsigned char {
+    ModeHessian,           // W_i(row, col)
+    ModeParameterHessian,  // C_i(row, col = parameter)
+    ParameterHessian,      // W_qq(row, col)
+    ModeJacobian,          // A_i(row = constraint, col = unknown)
+    ParameterJacobian,     // P_i(row = constraint, col = parameter)
+    MultiplierDiagonal,    // -delta_c
+  } kind;
+  int mode, row, col;
+};
+
+// Ipopt's singular-matrix code (it then raises delta_c, and delta_w if need be).
+constexpr int kSingular = -4;
+constexpr int kInputError = -1;
+constexpr int kOutOfMemory = -2;
+
+// One Ipopt linear-solver instance (keyed by its PARDISO handle).
+class KktInstance {
+ public:
+  int analyse(const Registration* registration, int n, const int* ia, const int* ja) {
+    registration_ = registration ? *registration : Registration{};
+    n_ = n;
+    ia_ = ia;
+    ja_ = ja;
+    structured_ = registration_.problem && classify(*registration_.problem);
+    return 0;
+  }
+
+  int factor(const double* a, const int* ia, const int* ja, int* iparm) {
+    ia_ = ia;  // the same structure as at the analysis; Ipopt passes its arrays every time
+    ja_ = ja;
+    double delta_c = 0;
+    for (int k : multiplier_diagonal_) delta_c = std::max(delta_c, std::abs(a[k]));
+    int negatives = 0;
+    const bool blocks = structured_ && delta_c == 0;
+    const int code = blocks ? factor_blocks(a, &negatives) : factor_whole(a, &negatives);
+    whole_used_ = !blocks;
+    if (registration_.counts) ++(blocks ? registration_.counts->structured : registration_.counts->mumps);
+    iparm[6] = 0;   // iterative refinement steps
+    iparm[13] = 0;  // perturbed pivots: none, so Ipopt never redoes the analysis
+    iparm[21] = n_ - negatives;
+    iparm[22] = negatives;
+    return code;
+  }
+
+  int solve(int nrhs, double* b) {
+    if (nrhs <= 0) return 0;
+    Eigen::Map<Matrix> rhs(b, n_, nrhs);
+    if (whole_used_) {
+      Matrix x = rhs;
+      whole_->solve(&x);
+      rhs = x;
+      return 0;
+    }
+    const FullSpaceProblem& p = *registration_.problem;
+    const int l = p.num_modes(), nd = p.num_dofs(), np = p.num_parameters(), nv = p.num_variables();
+    std::vector<Matrix> f(l, Matrix(nd + 1, nrhs)), e(l, Matrix(nd + 1, nrhs));
+    for (int i = 0; i < l; ++i)
+      for (int a = 0; a <= nd; ++a) {
+        f[i].row(a) = rhs.row(p.mode_entry(i, a));
+        e[i].row(a) = rhs.row(nv + p.mode_entry(i, a));
+      }
+    Matrix fq = rhs.middleRows(p.parameter_offset(), np);
+    elimination_->solve(&f, &e, &fq, [this](Matrix* h) { *h = reduced_inverse_ * (*h); });
+    for (int i = 0; i < l; ++i)
+      for (int a = 0; a <= nd; ++a) {
+        rhs.row(p.mode_entry(i, a)) = f[i].row(a);
+        rhs.row(nv + p.mode_entry(i, a)) = e[i].row(a);
+      }
+    rhs.middleRows(p.parameter_offset(), np) = fq;
+    return 0;
+  }
+
+ private:
+  // Places every stored entry; false when the matrix is not [x | y_c] of the registered problem.
+  bool classify(const FullSpaceProblem& p) {
+    const int nv = p.num_variables(), nc = p.num_constraints();
+    if (n_ != nv + nc) return false;
+    places_.clear();
+    multiplier_diagonal_.clear();
+    mode_entries_.assign(p.num_modes(), {});
+    parameter_entries_.clear();
+    for (int r = 0; r < n_; ++r)
+      for (int k = ia_[r] - 1; k < ia_[r + 1] - 1; ++k) {
+        const int c = ja_[k] - 1;
+        Place place{};
+        if (c < r || c >= n_ || !place_entry(p, r, c, &place)) return false;
+        if (place.kind == Place::MultiplierDiagonal)
+          multiplier_diagonal_.push_back(k);
+        else if (place.kind == Place::ParameterHessian)
+          parameter_entries_.push_back(k);
+        else
+          mode_entries_[place.mode].push_back(k);
+        places_.push_back(place);
+      }
+    elimination_ = std::make_unique<BlockElimination>(p.num_modes(), p.num_parameters(), /*keep_factors=*/true);
+    return true;
+  }
+
+  static bool place_entry(const FullSpaceProblem& p, int r, int c, Place* place) {
+    const int nv = p.num_variables();
+    int row_mode, row, col_mode, col;
+    if (r >= nv) {  // (y, y): only -delta_c on the diagonal
+      place->kind = Place::MultiplierDiagonal;
+      return r == c;
+    }
+    p.locate(r, &row_mode, &row);
+    p.locate(c < nv ? c : c - nv, &col_mode, &col);
+    if (c >= nv) {  // J^T: unknown r, constraint c
+      if (row_mode == -1) *place = {Place::ParameterJacobian, col_mode, col, row};
+      else *place = {Place::ModeJacobian, col_mode, col, row};
+      return row_mode == -1 || row_mode == col_mode;
+    }
+    if (row_mode == -1 && col_mode == -1) *place = {Place::ParameterHessian, -1, row, col};
+    else if (row_mode == -1) *place = {Place::ModeParameterHessian, col_mode, col, row};
+    else if (col_mode == -1) *place = {Place::ModeParameterHessian, row_mode, row, col};
+    else *place = {Place::ModeHessian, row_mode, row, col};
+    return row_mode == -1 || col_mode == -1 || row_mode == col_mode;
+  }
+
+  ModeKktBlocks mode_blocks(const FullSpaceProblem& p, int i, const double* a) const {
+    const int nd = p.num_dofs(), np = p.num_parameters();
+    ModeKktBlocks blocks;
+    blocks.row_scale = p.mode_row_scale(i);
+    blocks.jacobian_parameters = Matrix::Zero(nd + 1, np);
+    blocks.hessian_parameters = Matrix::Zero(nd + 1, np);
+    std::vector<Eigen::Triplet<double, int>> bordered, hessian;
+    for (int k : mode_entries_[i]) {
+      const Place& e = places_[k];
+      switch (e.kind) {
+        case Place::ModeHessian:
+          hessian.emplace_back(e.row, e.col, a[k]);
+          if (e.row != e.col) hessian.emplace_back(e.col, e.row, a[k]);
+          break;
+        case Place::ModeParameterHessian: blocks.hessian_parameters(e.row, e.col) += a[k]; break;
+        case Place::ParameterJacobian: blocks.jacobian_parameters(e.row, e.col) += a[k]; break;
+        case Place::ModeJacobian:  // B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle
+          if (e.row >= e.col) bordered.emplace_back(e.row, e.col, a[k] / blocks.row_scale[e.row]);
+          break;
+        default: break;
+      }
+    }
+    blocks.bordered.resize(nd + 1, nd + 1);
+    blocks.bordered.setFromTriplets(bordered.begin(), bordered.end());
+    blocks.hessian.resize(nd + 1, nd + 1);
+    blocks.hessian.setFromTriplets(hessian.begin(), hessian.end());
+    return blocks;
+  }
+
+  int factor_blocks(const double* a, int* negatives) {
+    const FullSpaceProblem& p = *registration_.problem;
+    const int np = p.num_parameters();
+    Matrix parameter_hessian = Matrix::Zero(np, np);
+    for (int k : parameter_entries_) {
+      const Place& e = places_[k];
+      parameter_hessian(e.row, e.col) += a[k];
+      if (e.row != e.col) parameter_hessian(e.col, e.row) += a[k];
+    }
+    elimination_->begin(parameter_hessian, nullptr);
+    for (int i = 0; i < p.num_modes(); ++i) {
+      std::string why;
+      if (!elimination_->add_mode(i, mode_blocks(p, i, a), nullptr, nullptr, &why)) return kSingular;
+    }
+    // Inertia from H's eigenvalues; a numerically zero one counts as negative, so that Ipopt
+    // raises delta_w (which makes H definite) rather than delta_c (which would leave the layout).
+    const Eigen::SelfAdjointEigenSolver<Matrix> eigen(elimination_->reduced_hessian());
+    const Vector& values = eigen.eigenvalues();
+    const double floor = 1e-13 * std::max(values.cwiseAbs().maxCoeff(), 1e-300);
+    int negative = 0;
+    Vector inverse(values.size());
+    for (int j = 0; j < values.size(); ++j) {
+      negative += values[j] <= floor;
+      inverse[j] = std::abs(values[j]) > floor ? 1.0 / values[j] : 0.0;
+    }
+    reduced_inverse_ = eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
+    *negatives = p.num_constraints() + negative;
+    return 0;
+  }
+
+  int factor_whole(const double* a, int* negatives) {
+    std::vector<Eigen::Triplet<double, int>> lower;  // the upper CSR, transposed
+    for (int r = 0; r < n_; ++r)
+      for (int k = ia_[r] - 1; k < ia_[r + 1] - 1; ++k) lower.emplace_back(ja_[k] - 1, r, a[k]);
+    SparseMatrix matrix(n_, n_);
+    matrix.setFromTriplets(lower.begin(), lower.end());
+    if (!whole_) {
+      whole_ = std::make_unique<MumpsSymmetricFactor>();
+      whole_->set_pivot_threshold(0.1);  // as Ipopt's MUMPS path (ipopt_adapter.cpp says why)
+    }
+    std::string why;
+    if (!whole_->factor(matrix, &why)) return kSingular;
+    *negatives = whole_->negative_pivots();
+    return 0;
+  }
+
+  Registration registration_;
+  int n_ = 0;
+  const int* ia_ = nullptr;  // Ipopt's structure arrays, as of the last call
+  const int* ja_ = nullptr;
+  bool structured_ = false, whole_used_ = false;
+  std::vector<Place> places_;
+  std::vector<std::vector<int>> mode_entries_;
+  std::vector<int> parameter_entries_, multiplier_diagonal_;
+  std::unique_ptr<BlockElimination> elimination_;
+  Matrix reduced_inverse_;
+  std::unique_ptr<MumpsSymmetricFactor> whole_;
+};
+
+extern "C" int structured_kkt_handler(void** handle, int phase, int n, const double* a, const int* ia, const int* ja,
+                                      int nrhs, int* iparm, double* b) {
+  KktInstance*& instance = *reinterpret_cast<KktInstance**>(handle);
+  try {
+    switch (phase) {
+      case -1:
+        delete instance;
+        instance = nullptr;
+        return 0;
+      case 11:
+        if (!instance) instance = new KktInstance;
+        return instance->analyse(current_registration, n, ia, ja);
+      case 22: return instance ? instance->factor(a, ia, ja, iparm) : kInputError;
+      case 33: return instance ? instance->solve(nrhs, b) : kInputError;
+      default: return kInputError;
+    }
+  } catch (const std::bad_alloc&) {
+    return kOutOfMemory;
+  } catch (...) {
+    return kInputError;
+  }
+}
+
+}  // namespace
+
+StructuredKktScope::StructuredKktScope(const FullSpaceProblem& problem, KktFactorizationCounts* counts)
+    : previous_(current_registration) {
+  modalcal_set_kkt_handler(&structured_kkt_handler);
+  current_registration = new Registration{&problem, counts};
+}
+
+StructuredKktScope::~StructuredKktScope() {
+  delete current_registration;
+  current_registration = static_cast<const Registration*>(previous_);
+}
+
+}  // namespace modalcal::detail

@@ -1,0 +1,265 @@
+// The KKT solvers of the full space, matrix by matrix: the block SQP's step against the whole
+// KKT system, and the structured solver Ipopt calls through libpardiso.so against dense linear
+// algebra - inertia (what Ipopt's inertia correction reads), the solution, a singular mode block,
+// and the fallback to MUMPS on the whole matrix for every matrix that is not the registered layout.
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
+#include <memory>
+
+#include "fullspace/block_kkt.hpp"
+#include "fullspace/fullspace_problem.hpp"
+#include "fullspace/structured_kkt.hpp"
+#include "modalcal/fullspace.hpp"
+#include "support/random_draws.hpp"
+#include "test_util.hpp"
+
+extern "C" {  // libpardiso.so's entry points, called as Ipopt calls them
+void pardisoinit(void* handle, const int* mtype, const int* solver, int* iparm, double* dparm, int* error);
+void pardiso(void** handle, const int* maxfct, const int* mnum, const int* mtype, const int* phase, const int* n,
+             const double* a, const int* ia, const int* ja, int* perm, const int* nrhs, int* iparm, const int* msglvl,
+             double* b, double* x, int* error, double* dparm);
+}
+
+namespace modalcal {
+namespace {
+
+// The model with every parameter kind; `coarse`: on a coarser mesh with three measured modes, a
+// KKT matrix of order ~1,500 that dense linear algebra checks in a second.
+std::string EveryKindModel(bool coarse) {
+  std::string text = testing::kEveryParameterKindModel;
+  if (coarse) {
+    text.replace(text.find("element_size: 0.5"), 17, "element_size: 0.625");
+    text.replace(text.find("modes: [1, 2, 3, 4, 5, 6]"), 25, "modes: [1, 2, 3]");
+    text.replace(text.find("at: [2.5, 1, 1.25]"), 18, "at: [3, 1, 1.25]");  // a node of the coarser mesh
+  }
+  return text;
+}
+
+// A full-space point away from feasibility: every parameter kind, modes and eigenvalues of the
+// forward solution at 1.3 p0 perturbed by 1e-3, random multipliers.
+struct PerturbedPoint {
+  explicit PerturbedPoint(bool coarse) : PerturbedPoint(load_problem(testing::WriteTempFile("model.yaml", EveryKindModel(coarse)))) {}
+  Problem problem;
+  Objective objective{problem, Regularized()};
+  Vector p = problem.initial_values() * 1.3;
+  ParameterScaling scaling{problem.parameters};
+  detail::FullSpaceProblem fp{objective, scaling, p};
+  Vector x, y;
+  std::vector<int> model_mode;
+
+  static ObjectiveOptions Regularized() {
+    ObjectiveOptions options;
+    options.regularization = 1e-2;  // so that the parameter block of the objective gradient is not zero
+    return options;
+  }
+  explicit PerturbedPoint(Problem loaded) : problem(std::move(loaded)) {
+    const Evaluation e = objective.evaluate(p, Need::Value);
+    if (!e.ok) throw std::runtime_error(e.message);
+    const int l = fp.num_modes(), n = fp.num_dofs();
+    Matrix U(n, l);
+    Vector lambda(l);
+    for (int i = 0; i < l; ++i) {
+      model_mode.push_back(e.pairs[fp.measured_of(i)].model);
+      U.col(i) = e.modal.modes.col(model_mode[i]);
+      lambda[i] = e.modal.eigenvalues[model_mode[i]];
+    }
+    detail::Uniform random_draws(7);
+    x = fp.pack(U, lambda, p);
+    y.resize(fp.num_constraints());
+    for (int k = 0; k < fp.num_variables() - fp.num_parameters(); ++k) x[k] *= 1 + 1e-3 * random_draws(-1, 1);
+    for (int k = 0; k < y.size(); ++k) y[k] = random_draws(-1, 1);
+  }
+
+  // Ipopt's KKT matrix [[W + delta_w I + diag(0, sigma_q), J^T], [J, -delta_c I]] (both
+  // triangles; every diagonal entry stored, as Ipopt stores them). `without_first_border`: the
+  // Jacobian without mode 1's eigenvalue column and normalization row, which makes the bordered
+  // block of mode 1, and the whole matrix, exactly singular.
+  SparseMatrix Kkt(double delta_w, const Vector& sigma_q, double delta_c = 0, bool without_first_border = false) {
+    const int nv = fp.num_variables(), nc = fp.num_constraints();
+    std::vector<int> rows(fp.jacobian_layout().nonzeros()), cols(rows.size());
+    fp.jacobian_layout().structure(rows.data(), cols.data());
+    Vector jv(rows.size());
+    fp.jacobian_values(x.data(), jv.data());
+    std::vector<int> hrows(fp.hessian_layout().nonzeros()), hcols(hrows.size());
+    fp.hessian_layout().structure(hrows.data(), hcols.data());
+    Vector hv(hrows.size());
+    fp.hessian_values(x.data(), 1.0, y.data(), hv.data());
+    std::vector<Eigen::Triplet<double, int>> entries;
+    const int border = fp.mode_entry(0, fp.num_dofs());
+    for (size_t k = 0; k < rows.size(); ++k) {
+      if (without_first_border && (rows[k] == border || cols[k] == border)) continue;
+      entries.emplace_back(nv + rows[k], cols[k], jv[k]);
+      entries.emplace_back(cols[k], nv + rows[k], jv[k]);
+    }
+    for (size_t k = 0; k < hrows.size(); ++k) {
+      entries.emplace_back(hrows[k], hcols[k], hv[k]);
+      if (hrows[k] != hcols[k]) entries.emplace_back(hcols[k], hrows[k], hv[k]);
+    }
+    for (int k = 0; k < nv; ++k) entries.emplace_back(k, k, delta_w + (k >= fp.parameter_offset() ? sigma_q[k - fp.parameter_offset()] : 0.0));
+    for (int k = 0; k < nc; ++k) entries.emplace_back(nv + k, nv + k, -delta_c);
+    SparseMatrix K(nv + nc, nv + nc);
+    K.setFromTriplets(entries.begin(), entries.end());
+    return K;
+  }
+};
+
+struct TrampolineResult {
+  int error = 0;
+  int negatives = 0;
+  Vector solution;
+};
+
+// One factorization and solve through libpardiso.so, phase by phase as Ipopt makes them.
+TrampolineResult SolveThroughTheTrampoline(const SparseMatrix& kkt, const Vector& rhs) {
+  std::vector<Eigen::Triplet<double, int>> upper;
+  for (int c = 0; c < kkt.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(kkt, c); it; ++it)
+      if (it.row() <= c) upper.emplace_back(it.row(), c, it.value());
+  Eigen::SparseMatrix<double, Eigen::RowMajor, int> csr(kkt.rows(), kkt.cols());
+  csr.setFromTriplets(upper.begin(), upper.end());
+  csr.makeCompressed();
+  std::vector<int> ia(csr.outerIndexPtr(), csr.outerIndexPtr() + csr.rows() + 1),
+      ja(csr.innerIndexPtr(), csr.innerIndexPtr() + csr.nonZeros());
+  for (int& v : ia) ++v;
+  for (int& v : ja) ++v;
+  void* handle[64];
+  int iparm[64] = {}, error = 0, perm = 0;
+  double dparm[64] = {}, unused = 0;
+  const int mtype = -2, solver = 0, one = 1, n = static_cast<int>(kkt.rows()), quiet = 0;
+  pardisoinit(handle, &mtype, &solver, iparm, dparm, &error);
+  TrampolineResult result;
+  result.solution = rhs;
+  auto call = [&](int phase, int nrhs) {
+    pardiso(handle, &one, &one, &mtype, &phase, &n, csr.valuePtr(), ia.data(), ja.data(), &perm, &nrhs, iparm, &quiet,
+            result.solution.data(), &unused, &error, dparm);
+    return error;
+  };
+  result.error = call(11, 0);
+  if (result.error == 0) result.error = call(22, 0);
+  result.negatives = iparm[22];
+  if (result.error == 0) call(33, 1);
+  call(-1, 0);
+  return result;
+}
+
+int DenseNegatives(const SparseMatrix& kkt) {
+  const Eigen::SelfAdjointEigenSolver<Matrix> eigen{Matrix(kkt)};
+  return static_cast<int>((eigen.eigenvalues().array() < 0).count());
+}
+
+// Normwise backward error |K x - b| / (|K| |x| + |b|) (infinity norms): a backward-stable
+// solver gives a small multiple of the rounding unit whatever the conditioning (the KKT matrices
+// here reach 1e9), so 1e-12 holds with a wide margin.
+double BackwardError(const SparseMatrix& kkt, const Vector& solution, const Vector& rhs) {
+  Vector row_sums = Vector::Zero(kkt.rows());
+  for (int c = 0; c < kkt.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(kkt, c); it; ++it) row_sums[it.row()] += std::abs(it.value());
+  return (kkt * solution - rhs).cwiseAbs().maxCoeff() /
+         (row_sums.maxCoeff() * solution.cwiseAbs().maxCoeff() + rhs.cwiseAbs().maxCoeff());
+}
+
+TEST(BlockKkt, StepSolvesTheWholeKktSystemAndCountsEachModesIndex) {
+  // For every parameter kind, the step assembled from the per-mode eliminations and the Schur
+  // complement must satisfy the whole KKT system [W A^T; A 0] (dx, dy) = -(grad L, c).
+  PerturbedPoint point(/*coarse=*/false);
+  detail::FullSpaceProblem& fp = point.fp;
+  detail::BlockKktSystem kkt(fp);
+  std::string error;
+  ASSERT_TRUE(kkt.build(point.x, point.y, &error)) << error;
+  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
+  Vector dx, dy;
+  kkt.step(dq, &dx, &dy);
+  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
+  Vector rhs(K.rows()), step(K.rows());
+  rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
+  step << dx, dy;
+  ASSERT_GT(kkt.constraints().cwiseAbs().maxCoeff(), 1e-6);  // the point is really infeasible
+  EXPECT_LT(BackwardError(K, step, rhs), 1e-12);
+  // Sylvester: B_i has one negative pivot per eigenvalue below lambda_i, plus one of the border.
+  for (int i = 0; i < fp.num_modes(); ++i) EXPECT_EQ(kkt.mode_index(i), point.model_mode[i] + 1) << "mode " << i + 1;
+}
+
+TEST(StructuredKkt, InertiaAndSolutionMatchDenseLinearAlgebra) {
+  // Ipopt's inertia correction reads the number of negative eigenvalues: it must be exact, both
+  // where it is right (n_c) and where the correction has to act (more than n_c).
+  PerturbedPoint point(/*coarse=*/true);
+  detail::FullSpaceProblem& fp = point.fp;
+  detail::KktFactorizationCounts counts;
+  const detail::StructuredKktScope scope(fp, &counts);
+  detail::Uniform random_draws(11);
+  Vector rhs(fp.num_variables() + fp.num_constraints());
+  for (int k = 0; k < rhs.size(); ++k) rhs[k] = random_draws(-1, 1);
+  const int np = fp.num_parameters();
+  bool saw_right = false, saw_wrong = false;
+  int calls = 0;
+  const std::vector<std::pair<double, double>> shifts = {{0.0, 0.0}, {1e2, 0.0}, {1e-2, 1.0}, {0.0, -1e3}};
+  for (const auto& [delta_w, sigma] : shifts) {
+      const SparseMatrix K = point.Kkt(delta_w, Vector::Constant(np, sigma));
+      const TrampolineResult r = SolveThroughTheTrampoline(K, rhs);
+      ++calls;
+      ASSERT_EQ(r.error, 0) << "delta_w " << delta_w << ", sigma " << sigma;
+      const int dense = DenseNegatives(K);
+      EXPECT_EQ(r.negatives, dense) << "delta_w " << delta_w << ", sigma " << sigma;
+      saw_right = saw_right || dense == fp.num_constraints();
+      saw_wrong = saw_wrong || dense > fp.num_constraints();
+      EXPECT_LT(BackwardError(K, r.solution, rhs), 1e-12) << "delta_w " << delta_w << ", sigma " << sigma;
+    }
+  EXPECT_TRUE(saw_right && saw_wrong);
+  EXPECT_EQ(counts.structured, calls);
+  EXPECT_EQ(counts.mumps, 0);
+}
+
+TEST(StructuredKkt, ASingularModeBlockIsReportedAsSingular) {
+  // Without the border of mode 1's block (its eigenvalue column and normalization row) the KKT
+  // matrix is singular, and Ipopt must hear PARDISO's "singular" (-4) to regularize the Jacobian.
+  PerturbedPoint point(/*coarse=*/true);
+  detail::FullSpaceProblem& fp = point.fp;
+  detail::KktFactorizationCounts counts;
+  const detail::StructuredKktScope scope(fp, &counts);
+  const SparseMatrix K = point.Kkt(1e-2, Vector::Zero(fp.num_parameters()), 0, /*without_first_border=*/true);
+  const Eigen::SelfAdjointEigenSolver<Matrix> dense{Matrix(K)};
+  ASSERT_LT(dense.eigenvalues().cwiseAbs().minCoeff(), 1e-12 * dense.eigenvalues().cwiseAbs().maxCoeff());
+  EXPECT_EQ(SolveThroughTheTrampoline(K, Vector::Ones(K.rows())).error, -4);
+}
+
+TEST(StructuredKkt, OtherLayoutsFallBackToMumpsOnTheWholeMatrix) {
+  // Ipopt's restoration phase adds unknowns; a singular matrix makes Ipopt regularize the
+  // Jacobian (-delta_c I); without a registered problem nothing is known. All go to MUMPS.
+  PerturbedPoint point(/*coarse=*/true);
+  detail::FullSpaceProblem& fp = point.fp;
+  const int np = fp.num_parameters();
+  Vector rhs = Vector::LinSpaced(fp.num_variables() + fp.num_constraints() + 1, -1, 1);
+  SparseMatrix K = point.Kkt(1e-2, Vector::Ones(np));
+  // One more unknown, coupled to the first constraint row, as a restoration slack is.
+  SparseMatrix wider(K.rows() + 1, K.cols() + 1);
+  std::vector<Eigen::Triplet<double, int>> entries;
+  for (int c = 0; c < K.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(K, c); it; ++it) entries.emplace_back(it.row(), c, it.value());
+  const int slack = static_cast<int>(K.rows()), row = fp.num_variables();
+  entries.insert(entries.end(), {{slack, slack, 1.0}, {slack, row, 1.0}, {row, slack, 1.0}});
+  wider.setFromTriplets(entries.begin(), entries.end());
+  const SparseMatrix regularized = point.Kkt(1e-2, Vector::Ones(np), 1e-8);
+  const Vector rhs_k = rhs.head(K.rows());
+
+  detail::KktFactorizationCounts counts;
+  {
+    const detail::StructuredKktScope scope(fp, &counts);
+    for (const SparseMatrix* matrix : std::vector<const SparseMatrix*>{&wider, &regularized}) {
+      const Vector& b = matrix->rows() == rhs.size() ? rhs : rhs_k;
+      const TrampolineResult r = SolveThroughTheTrampoline(*matrix, b);
+      ASSERT_EQ(r.error, 0);
+      EXPECT_EQ(r.negatives, DenseNegatives(*matrix));
+      EXPECT_LT(BackwardError(*matrix, r.solution, b), 1e-12);
+    }
+  }
+  EXPECT_EQ(counts.mumps, 2);
+  EXPECT_EQ(counts.structured, 0);
+  const TrampolineResult unregistered = SolveThroughTheTrampoline(K, rhs_k);
+  ASSERT_EQ(unregistered.error, 0);
+  EXPECT_LT(BackwardError(K, unregistered.solution, rhs_k), 1e-12);
+}
+
+}  // namespace
+}  // namespace modalcal
