@@ -19,12 +19,12 @@ void BlockElimination::begin(const Matrix& parameter_hessian, const Vector* para
 }
 
 Matrix BlockElimination::eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right,
-                                   Matrix* left) {
+                                   Matrix* left, const std::function<Matrix(const Matrix&)>& hessian_product) {
   // A z = e <=> B z = e / s;  A^T w = g <=> B (s w) = g.
   const Vector inverse_scale = blocks.row_scale.cwiseInverse();
   *right = inverse_scale.asDiagonal() * (*right);
   factor.solve(right);
-  *left -= blocks.hessian * (*right);
+  *left -= hessian_product ? hessian_product(*right) : Matrix(blocks.hessian * (*right));
   factor.solve(left);
   *left = inverse_scale.asDiagonal() * (*left);
   // With right = [a, S] and left = [b, T]: C^T S + P^T T = C^T S + S^T (C - W S) (as T = A^{-T}
@@ -47,7 +47,7 @@ bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, co
   }
   right.rightCols(np_) = blocks.jacobian_parameters;
   left.rightCols(np_) = blocks.hessian_parameters;
-  const Matrix reduction = eliminate(blocks, factor, &right, &left);
+  const Matrix reduction = eliminate(blocks, factor, &right, &left, {});
   reduced_hessian_ -= reduction.rightCols(np_);
   mode.S = right.rightCols(np_);
   mode.T = left.rightCols(np_);
@@ -71,10 +71,17 @@ void BlockElimination::expand(int i, const Vector& dq, Vector* dx, Vector* dy) c
 }
 
 void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
-                             const std::function<void(Matrix*)>& solve_reduced) {
+                             const std::function<void(Matrix*)>& solve_reduced,
+                             const std::function<Matrix(int, const Matrix&)>& hessian_product) {
   if (!keep_factors_) throw std::logic_error("BlockElimination::solve without kept factors");
-  for (size_t i = 0; i < modes_.size(); ++i)
-    *fq -= eliminate(modes_[i].blocks, *modes_[i].factor, &(*e)[i], &(*f)[i]);  // e_i -> a_i, f_i -> b_i
+  for (size_t i = 0; i < modes_.size(); ++i) {
+    std::function<Matrix(const Matrix&)> product;
+    if (modes_[i].blocks.hessian.size() == 0) {
+      if (!hessian_product) throw std::logic_error("BlockElimination::solve: W_i released and no product given");
+      product = [&, i](const Matrix& v) { return hessian_product(static_cast<int>(i), v); };
+    }
+    *fq -= eliminate(modes_[i].blocks, *modes_[i].factor, &(*e)[i], &(*f)[i], product);  // e_i -> a_i, f_i -> b_i
+  }
   solve_reduced(fq);
   for (size_t i = 0; i < modes_.size(); ++i) {
     Matrix& a = (*e)[i];

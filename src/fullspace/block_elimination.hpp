@@ -66,8 +66,12 @@ class BlockElimination {
   /// Right-hand sides of the whole system, per mode (f_i, e_i: (n + 1) x k) and for q (f_q,
   /// m x k), replaced by the solution (dx_i, dy_i, dq); `solve_reduced` solves H dq = h for the
   /// k columns of h in place. Requires keep_factors.
+  /// `hessian_product(i, v)` gives W_i v for modes whose W_i was released.
   void solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
-             const std::function<void(Matrix*)>& solve_reduced);
+             const std::function<void(Matrix*)>& solve_reduced,
+             const std::function<Matrix(int, const Matrix&)>& hessian_product = {});
+  /// Frees the kept W_i of mode i (solve() then needs `hessian_product`).
+  void release_hessian(int i) { modes_[i].blocks.hessian = SparseMatrix(); }
 
  private:
   struct Mode {
@@ -78,7 +82,8 @@ class BlockElimination {
   };
   // right = [e ...] -> A^{-1} right; left = [f ...] -> A^{-T} (left - W A^{-1} right), column by
   // column; returns C^T right + P^T left (the columns' part of h, or of H).
-  static Matrix eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right, Matrix* left);
+  static Matrix eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right, Matrix* left,
+                          const std::function<Matrix(const Matrix&)>& hessian_product);
   int np_;
   bool keep_factors_;
   std::vector<Mode> modes_;

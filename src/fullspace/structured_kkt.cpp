@@ -38,26 +38,25 @@ constexpr int kSingular = -4;
 constexpr int kInputError = -1;
 constexpr int kOutOfMemory = -2;
 
-// One Ipopt linear-solver instance (keyed by its PARDISO handle).
+// One Ipopt linear-solver instance (keyed by its PARDISO handle). It stores no copy of the
+// matrix: every entry is placed again from its (row, column) when it is read (a few integer
+// operations), since Ipopt passes its arrays with every call; only the factors, S_i, T_i, C_i and
+// P_i are kept between the factorization and the solves.
 class KktInstance {
  public:
   int analyse(const Registration* registration, int n, const int* ia, const int* ja) {
     registration_ = registration ? *registration : Registration{};
     n_ = n;
-    ia_ = ia;
-    ja_ = ja;
-    structured_ = registration_.problem && classify(*registration_.problem);
+    structured_ = registration_.problem && classify(*registration_.problem, ia, ja);
     return 0;
   }
 
   int factor(const double* a, const int* ia, const int* ja, int* iparm) {
-    ia_ = ia;  // the same structure as at the analysis; Ipopt passes its arrays every time
-    ja_ = ja;
     double delta_c = 0;
     for (int k : multiplier_diagonal_) delta_c = std::max(delta_c, std::abs(a[k]));
     int negatives = 0;
     const bool blocks = structured_ && delta_c == 0;
-    const int code = blocks ? factor_blocks(a, &negatives) : factor_whole(a, &negatives);
+    const int code = blocks ? factor_blocks(a, ia, ja, &negatives) : factor_whole(a, ia, ja, &negatives);
     whole_used_ = !blocks;
     if (registration_.counts) ++(blocks ? registration_.counts->structured : registration_.counts->mumps);
     iparm[6] = 0;   // iterative refinement steps
@@ -67,7 +66,7 @@ class KktInstance {
     return code;
   }
 
-  int solve(int nrhs, double* b) {
+  int solve(const double* a, const int* ia, const int* ja, int nrhs, double* b) {
     if (nrhs <= 0) return 0;
     Eigen::Map<Matrix> rhs(b, n_, nrhs);
     if (whole_used_) {
@@ -80,42 +79,41 @@ class KktInstance {
     const int l = p.num_modes(), nd = p.num_dofs(), np = p.num_parameters(), nv = p.num_variables();
     std::vector<Matrix> f(l, Matrix(nd + 1, nrhs)), e(l, Matrix(nd + 1, nrhs));
     for (int i = 0; i < l; ++i)
-      for (int a = 0; a <= nd; ++a) {
-        f[i].row(a) = rhs.row(p.mode_entry(i, a));
-        e[i].row(a) = rhs.row(nv + p.mode_entry(i, a));
+      for (int k = 0; k <= nd; ++k) {
+        f[i].row(k) = rhs.row(p.mode_entry(i, k));
+        e[i].row(k) = rhs.row(nv + p.mode_entry(i, k));
       }
     Matrix fq = rhs.middleRows(p.parameter_offset(), np);
-    elimination_->solve(&f, &e, &fq, [this](Matrix* h) { *h = reduced_inverse_ * (*h); });
+    auto hessian_product = [&](int i, const Matrix& v) {
+      Matrix product = Matrix::Zero(v.rows(), v.cols());
+      for_each_in_mode_rows(p, i, ia, ja, [&](int k, const Place& place) {
+        if (place.kind != Place::ModeHessian) return;
+        product.row(place.row) += a[k] * v.row(place.col);
+        if (place.row != place.col) product.row(place.col) += a[k] * v.row(place.row);
+      });
+      return product;
+    };
+    elimination_->solve(&f, &e, &fq, [this](Matrix* h) { *h = reduced_inverse_ * (*h); }, hessian_product);
     for (int i = 0; i < l; ++i)
-      for (int a = 0; a <= nd; ++a) {
-        rhs.row(p.mode_entry(i, a)) = f[i].row(a);
-        rhs.row(nv + p.mode_entry(i, a)) = e[i].row(a);
+      for (int k = 0; k <= nd; ++k) {
+        rhs.row(p.mode_entry(i, k)) = f[i].row(k);
+        rhs.row(nv + p.mode_entry(i, k)) = e[i].row(k);
       }
     rhs.middleRows(p.parameter_offset(), np) = fq;
     return 0;
   }
 
  private:
-  // Places every stored entry; false when the matrix is not [x | y_c] of the registered problem.
-  bool classify(const FullSpaceProblem& p) {
-    const int nv = p.num_variables(), nc = p.num_constraints();
-    if (n_ != nv + nc) return false;
-    places_.clear();
+  // True when every stored entry has a place in the [x | y_c] layout of the registered problem.
+  bool classify(const FullSpaceProblem& p, const int* ia, const int* ja) {
+    if (n_ != p.num_variables() + p.num_constraints()) return false;
     multiplier_diagonal_.clear();
-    mode_entries_.assign(p.num_modes(), {});
-    parameter_entries_.clear();
     for (int r = 0; r < n_; ++r)
-      for (int k = ia_[r] - 1; k < ia_[r + 1] - 1; ++k) {
-        const int c = ja_[k] - 1;
+      for (int k = ia[r] - 1; k < ia[r + 1] - 1; ++k) {
+        const int c = ja[k] - 1;
         Place place{};
         if (c < r || c >= n_ || !place_entry(p, r, c, &place)) return false;
-        if (place.kind == Place::MultiplierDiagonal)
-          multiplier_diagonal_.push_back(k);
-        else if (place.kind == Place::ParameterHessian)
-          parameter_entries_.push_back(k);
-        else
-          mode_entries_[place.mode].push_back(k);
-        places_.push_back(place);
+        if (place.kind == Place::MultiplierDiagonal) multiplier_diagonal_.push_back(k);
       }
     elimination_ = std::make_unique<BlockElimination>(p.num_modes(), p.num_parameters(), /*keep_factors=*/true);
     return true;
@@ -142,28 +140,46 @@ class KktInstance {
     return row_mode == -1 || col_mode == -1 || row_mode == col_mode;
   }
 
-  ModeKktBlocks mode_blocks(const FullSpaceProblem& p, int i, const double* a) const {
+  // The entries stored in the rows of `first .. first + count - 1`, placed.
+  template <class Visit>
+  static void for_each_in_rows(const FullSpaceProblem& p, int first, int count, const int* ia, const int* ja,
+                               Visit&& visit) {
+    for (int r = first; r < first + count; ++r)
+      for (int k = ia[r] - 1; k < ia[r + 1] - 1; ++k) {
+        Place place{};
+        place_entry(p, r, ja[k] - 1, &place);
+        visit(k, place);
+      }
+  }
+  // Mode i's rows (its u~_i and t_i): every entry of W_i, C_i and A_i is stored there (upper
+  // triangle: the parameter and multiplier columns come after them).
+  template <class Visit>
+  static void for_each_in_mode_rows(const FullSpaceProblem& p, int i, const int* ia, const int* ja, Visit&& visit) {
+    for_each_in_rows(p, p.mode_entry(i, 0), p.num_dofs(), ia, ja, visit);
+    for_each_in_rows(p, p.mode_entry(i, p.num_dofs()), 1, ia, ja, visit);
+  }
+
+  ModeKktBlocks mode_blocks(const FullSpaceProblem& p, int i, const double* a, const int* ia, const int* ja,
+                            Matrix jacobian_parameters) const {
     const int nd = p.num_dofs(), np = p.num_parameters();
     ModeKktBlocks blocks;
     blocks.row_scale = p.mode_row_scale(i);
-    blocks.jacobian_parameters = Matrix::Zero(nd + 1, np);
+    blocks.jacobian_parameters = std::move(jacobian_parameters);
     blocks.hessian_parameters = Matrix::Zero(nd + 1, np);
     std::vector<Eigen::Triplet<double, int>> bordered, hessian;
-    for (int k : mode_entries_[i]) {
-      const Place& e = places_[k];
+    for_each_in_mode_rows(p, i, ia, ja, [&](int k, const Place& e) {
       switch (e.kind) {
         case Place::ModeHessian:
           hessian.emplace_back(e.row, e.col, a[k]);
           if (e.row != e.col) hessian.emplace_back(e.col, e.row, a[k]);
           break;
         case Place::ModeParameterHessian: blocks.hessian_parameters(e.row, e.col) += a[k]; break;
-        case Place::ParameterJacobian: blocks.jacobian_parameters(e.row, e.col) += a[k]; break;
         case Place::ModeJacobian:  // B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle
           if (e.row >= e.col) bordered.emplace_back(e.row, e.col, a[k] / blocks.row_scale[e.row]);
           break;
         default: break;
       }
-    }
+    });
     blocks.bordered.resize(nd + 1, nd + 1);
     blocks.bordered.setFromTriplets(bordered.begin(), bordered.end());
     blocks.hessian.resize(nd + 1, nd + 1);
@@ -171,19 +187,27 @@ class KktInstance {
     return blocks;
   }
 
-  int factor_blocks(const double* a, int* negatives) {
+  int factor_blocks(const double* a, const int* ia, const int* ja, int* negatives) {
     const FullSpaceProblem& p = *registration_.problem;
-    const int np = p.num_parameters();
+    const int np = p.num_parameters(), l = p.num_modes();
+    // The parameter rows hold W_qq and every mode's P_i (as P_i^T).
     Matrix parameter_hessian = Matrix::Zero(np, np);
-    for (int k : parameter_entries_) {
-      const Place& e = places_[k];
-      parameter_hessian(e.row, e.col) += a[k];
-      if (e.row != e.col) parameter_hessian(e.col, e.row) += a[k];
-    }
+    std::vector<Matrix> jacobian_parameters(l, Matrix::Zero(p.num_dofs() + 1, np));
+    for_each_in_rows(p, p.parameter_offset(), np, ia, ja, [&](int k, const Place& e) {
+      if (e.kind == Place::ParameterJacobian) {
+        jacobian_parameters[e.mode](e.row, e.col) += a[k];
+      } else if (e.kind == Place::ParameterHessian) {
+        parameter_hessian(e.row, e.col) += a[k];
+        if (e.row != e.col) parameter_hessian(e.col, e.row) += a[k];
+      }
+    });
     elimination_->begin(parameter_hessian, nullptr);
-    for (int i = 0; i < p.num_modes(); ++i) {
+    for (int i = 0; i < l; ++i) {
       std::string why;
-      if (!elimination_->add_mode(i, mode_blocks(p, i, a), nullptr, nullptr, &why)) return kSingular;
+      if (!elimination_->add_mode(i, mode_blocks(p, i, a, ia, ja, std::move(jacobian_parameters[i])), nullptr, nullptr,
+                                  &why))
+        return kSingular;
+      elimination_->release_hessian(i);  // the solves read W_i from Ipopt's values
     }
     // Inertia from H's eigenvalues; a numerically zero one counts as negative, so that Ipopt
     // raises delta_w (which makes H definite) rather than delta_c (which would leave the layout).
@@ -201,12 +225,13 @@ class KktInstance {
     return 0;
   }
 
-  int factor_whole(const double* a, int* negatives) {
+  int factor_whole(const double* a, const int* ia, const int* ja, int* negatives) {
     std::vector<Eigen::Triplet<double, int>> lower;  // the upper CSR, transposed
     for (int r = 0; r < n_; ++r)
-      for (int k = ia_[r] - 1; k < ia_[r + 1] - 1; ++k) lower.emplace_back(ja_[k] - 1, r, a[k]);
+      for (int k = ia[r] - 1; k < ia[r + 1] - 1; ++k) lower.emplace_back(ja[k] - 1, r, a[k]);
     SparseMatrix matrix(n_, n_);
     matrix.setFromTriplets(lower.begin(), lower.end());
+    lower = {};
     if (!whole_) {
       whole_ = std::make_unique<MumpsSymmetricFactor>();
       whole_->set_pivot_threshold(0.1);  // as Ipopt's MUMPS path (ipopt_adapter.cpp says why)
@@ -219,12 +244,8 @@ class KktInstance {
 
   Registration registration_;
   int n_ = 0;
-  const int* ia_ = nullptr;  // Ipopt's structure arrays, as of the last call
-  const int* ja_ = nullptr;
   bool structured_ = false, whole_used_ = false;
-  std::vector<Place> places_;
-  std::vector<std::vector<int>> mode_entries_;
-  std::vector<int> parameter_entries_, multiplier_diagonal_;
+  std::vector<int> multiplier_diagonal_;  // positions of the (y, y) diagonal: -delta_c
   std::unique_ptr<BlockElimination> elimination_;
   Matrix reduced_inverse_;
   std::unique_ptr<MumpsSymmetricFactor> whole_;
@@ -243,7 +264,7 @@ extern "C" int structured_kkt_handler(void** handle, int phase, int n, const dou
         if (!instance) instance = new KktInstance;
         return instance->analyse(current_registration, n, ia, ja);
       case 22: return instance ? instance->factor(a, ia, ja, iparm) : kInputError;
-      case 33: return instance ? instance->solve(nrhs, b) : kInputError;
+      case 33: return instance ? instance->solve(a, ia, ja, nrhs, b) : kInputError;
       default: return kInputError;
     }
   } catch (const std::bad_alloc&) {
