@@ -1,5 +1,6 @@
 // Full-space calibration (minimize_fullspace: Newton on modes, eigenvalues and parameters at
-// once, with Ipopt or with the block-elimination solver) against reduced-space projected L-BFGS
+// once: Ipopt on the structured KKT solver, Ipopt with MUMPS on the whole KKT matrix, or the
+// block-elimination SQP) against reduced-space projected L-BFGS
 // (minimize_reduced), side by side in one run, on the LFU synthetic problem at several mesh sizes.
 //
 // Problem: problems/lfu/synthetic.yaml (five parameters, log scaling, bounds, noise-free modes
@@ -486,7 +487,7 @@ int run(int argc, char** argv) {
     return std::abs(std::log(dofs_at(lo) / target)) < std::abs(std::log(dofs_at(hi) / target)) ? lo : hi;
   };
 
-  std::printf("Full space (Ipopt, block elimination) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
+  std::printf("Full space (Ipopt on the structured KKT solver or on MUMPS, block SQP) vs reduced L-BFGS, %s\n", s.problem_path.c_str());
   std::printf("start: truth x %g (clamped to bounds); target parameter error %.0e; per case: max %.0f s, %s\n",
               s.start_factor, s.target_error, s.max_seconds,
               s.max_memory_mb > 0 ? (format("%.0f", s.max_memory_mb) + " MB resident").c_str()
