@@ -78,6 +78,7 @@
 #include <vector>
 
 #include "bench_util.hpp"
+#include "modalcal/block_geometry.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/effects.hpp"
 #include "modalcal/elements.hpp"
@@ -475,23 +476,9 @@ ProblemContext make_context(const std::string& path, const MeasurementNoise& noi
   for (const FixedDofs& f : model.fixed)
     for (int v : f.nodes)
       for (int c = 0; c < 6; ++c) ctx.fixed[v][c] = ctx.fixed[v][c] || f.components[c];
-  ctx.blocks_of_node.assign(model.num_nodes(), {});
-  for (size_t b = 0; b < model.blocks.size(); ++b) {
-    const ElementBlock& block = model.blocks[b];
-    const int npe = nodes_per_element(block.type);
-    double volume = 0;
-    Eigen::Matrix3Xd coords(3, npe);
-    for (int e = 0; e < block.num_elements(); ++e) {
-      for (int k = 0; k < npe; ++k) {
-        const int v = block.connectivity[e * npe + k];
-        coords.col(k) = model.coordinates[v];
-        if (ctx.blocks_of_node[v].empty() || ctx.blocks_of_node[v].back() != static_cast<int>(b))
-          ctx.blocks_of_node[v].push_back(static_cast<int>(b));
-      }
-      volume += solid_element_matrices(block.type, coords).mass.sum() / 3;
-    }
-    ctx.block_h.push_back(std::cbrt(volume / std::max(1, block.num_elements())));
-  }
+  const BlockGeometry geometry = block_geometry(model);
+  ctx.blocks_of_node = geometry.blocks_of_node;
+  for (size_t b = 0; b < model.blocks.size(); ++b) ctx.block_h.push_back(geometry.element_size(model, static_cast<int>(b)));
   for (int v = 0; v < model.num_nodes(); ++v)
     if (!ctx.blocks_of_node[v].empty() && !(ctx.fixed[v][0] && ctx.fixed[v][1] && ctx.fixed[v][2])) ctx.free_nodes.push_back(v);
 

@@ -10,6 +10,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "modalcal/block_geometry.hpp"
 #include "modalcal/effects.hpp"
 
 namespace modalcal {
@@ -21,31 +22,21 @@ namespace {
 /// magnitudes the candidates' references and bounds are made of.
 class ModelScales {
  public:
-  explicit ModelScales(const Model& model) : model_(model), blocks_of_node_(model.num_nodes()) {
+  explicit ModelScales(const Model& model) : model_(model) {
+    BlockGeometry geometry = block_geometry(model);
+    blocks_of_node_ = std::move(geometry.blocks_of_node);
     for (size_t b = 0; b < model.blocks.size(); ++b) {
       const ElementBlock& block = model.blocks[b];
-      const int npe = nodes_per_element(block.type);
-      double volume = 0;
-      Eigen::Matrix3Xd coords(3, npe);
-      for (int e = 0; e < block.num_elements(); ++e) {
-        for (int k = 0; k < npe; ++k) {
-          const int v = block.connectivity[e * npe + k];
-          coords.col(k) = model.coordinates[v];
-          if (blocks_of_node_[v].empty() || blocks_of_node_[v].back() != static_cast<int>(b))
-            blocks_of_node_[v].push_back(static_cast<int>(b));
-        }
-        volume += solid_element_matrices(block.type, coords).mass.sum() / 3;  // sum of N^T N = 3 V
-      }
+      const double volume = geometry.volume[b];
       const double scale = block.stiffness_scale == kNoProperty ? 1 : model.property_value(block.stiffness_scale);
       const double mass_scale = block.mass_scale == kNoProperty ? 1 : model.property_value(block.mass_scale);
       const double a = model.property_value(block.modulus_a), m = model.property_value(block.modulus_b);
       const double young = block.form == ElasticForm::YoungPoisson ? a : 9 * a * m / (3 * a + m);
-      const double h = std::cbrt(volume / std::max(1, block.num_elements()));
+      const double h = geometry.element_size(model, static_cast<int>(b));
       node_stiffness_.push_back(scale * young * h);
       mass_.push_back(mass_scale * model.property_value(block.density) * volume);
       size_.push_back(h);
     }
-    for (std::vector<int>& blocks : blocks_of_node_) std::sort(blocks.begin(), blocks.end());
     for (const RigidCoupling& c : model.rigid_couplings) coupled_[c.reference] = c.nodes;
   }
 
