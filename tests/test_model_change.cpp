@@ -155,6 +155,52 @@ TEST(ModelChange, AbsentScaleFactorsAndComponentsAreCreatedAndAct) {
   EXPECT_NE(twisted.joints[0].stiffness[3], kNoProperty);
 }
 
+TEST(ModelChange, RegionsScalePartOfABlockOnTopOfItsOwnMultiplier) {
+  const Model nominal = LoadBar();
+  const Vector f0 = Frequencies(nominal, 4);
+  auto soften_joint = [](Model* m) {  // as above: the joint is not part of the block
+    for (const char* c : {"link.kx=25", "link.ky=25", "link.kz=25"}) apply_model_change(m, parse_model_change(c));
+  };
+  // The bar's 16 elements (centroids x = 0.25 ... 3.75) in two regions at x = 2: each region's
+  // stiffness / 2 and the block's / 2 make the whole bar's stiffness / 4, so every frequency halves.
+  Model halves = nominal;
+  soften_joint(&halves);
+  apply_model_change(&halves, parse_model_change("bar.stiffness_scale=0.5"));
+  const ModelEffect left = apply_model_change(&halves, parse_model_change("region@bar/[0,0,0]/[2,0.5,0.75]:stiffness_scale=0.5"));
+  apply_model_change(&halves, parse_model_change("region@bar/[4,0.5,0.75]/[2,0,0]:stiffness_scale=0.5"));
+  EXPECT_EQ(left.name, "bar_region_1_0p25_0p375.stiffness_scale");
+  EXPECT_EQ(left.nominal_value, 1);
+  EXPECT_NE(left.description.find("part of block bar: its 8 elements"), std::string::npos) << left.description;
+  ASSERT_EQ(halves.blocks[0].regions.size(), 2u);
+  EXPECT_EQ(halves.blocks[0].regions[0].elements.size(), 8u);
+  EXPECT_LT(testing::RelativeDifference(Frequencies(halves, 4), f0 / 2), 1e-9);
+
+  // Overlapping regions multiply; the same box again is the same region, its value replaced.
+  Model overlapping = nominal;
+  soften_joint(&overlapping);
+  apply_model_change(&overlapping, parse_model_change("region@bar/[-1,-1,-1]/[5,1,1]:stiffness_scale=0.7"));
+  apply_model_change(&overlapping, parse_model_change("region@bar/[-1,-1,-1]/[5,1,1]:stiffness_scale=0.5"));
+  apply_model_change(&overlapping, parse_model_change("region@bar/[0,0,0]/[4,0.5,0.75]:stiffness_scale=0.5"));
+  EXPECT_EQ(overlapping.blocks[0].regions.size(), 2u);
+  EXPECT_LT(testing::RelativeDifference(Frequencies(overlapping, 4), f0 / 2), 1e-9);
+  // Its property is set like any other once the region exists.
+  apply_model_change(&overlapping, parse_model_change("bar_region_2_0_0.mass_scale=2"));
+  EXPECT_NE(overlapping.blocks[0].regions[0].mass_scale, kNoProperty);
+
+  // Part of the bar only: stiffer near the root raises the first (bending) frequency more
+  // than stiffer near the tip does.
+  Model root = nominal, tip = nominal;
+  apply_model_change(&root, parse_model_change("region@bar/[0,0,0]/[1,0.5,0.75]:stiffness_scale=2"));
+  apply_model_change(&tip, parse_model_change("region@bar/[3,0,0]/[4,0.5,0.75]:stiffness_scale=2"));
+  EXPECT_GT(Frequencies(root, 1)[0], Frequencies(tip, 1)[0] * 1.01);
+
+  ExpectChangeError("region@beam/[0,0,0]/[1,1,1]:stiffness_scale=2", {"unknown block 'beam'", "known blocks: bar"});
+  ExpectChangeError("region@bar/[10,0,0]/[11,1,1]:stiffness_scale=2", {"no element of block 'bar'"});
+  ExpectChangeError("region@bar/[0,0,0]/[4,1,1]:kx=2", {"no property 'kx'", "stiffness_scale, mass_scale"});
+  ExpectChangeError("region@bar/[0,0,0]:stiffness_scale=2", {"region@BLOCK/[x,y,z]/[x,y,z]"});
+  ExpectChangeError("region@bar/[0,0,0]/[4,1,1]:stiffness_scale=0", {"must be positive"});
+}
+
 TEST(ModelChange, PointMassOnANodeSetSitsOnEachNodeAndGrowsOnRepeat) {
   Model model = LoadBar();
   const int tip_nodes = static_cast<int>(model.find_node_set("tip")->nodes.size());

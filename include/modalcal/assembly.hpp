@@ -143,7 +143,9 @@ class ParametricSystem {
   std::vector<Term> terms_;
   SparseMatrix pattern_;
   std::vector<int> columns_;            // column of each pattern position
-  std::vector<double> block_volume_;    // per block, for the total mass
+  // Volume and density coefficient of each group of elements with the same multipliers, for the
+  // total mass.
+  std::vector<std::pair<double, Coefficient>> mass_groups_;
 };
 
 }  // namespace modalcal

@@ -39,6 +39,16 @@ struct Property {
 /// \f$\kappa = E / (3(1-2\nu)),\; G = E / (2(1+\nu))\f$.
 enum class ElasticForm { BulkShear, YoungPoisson };
 
+/// A part of a block with its own multipliers, applied on top of the block's: model-form
+/// diagnosis's candidates "stiffer or heavier here" (model_change.hpp, `region@...`). Regions of
+/// one block may overlap; an element in several carries the product of their multipliers.
+struct BlockRegion {
+  std::string name;           ///< unique among the model's entities, e.g. "foam_region_0p05_0_0p45"
+  std::vector<int> elements;  ///< indices into the block's elements, sorted, unique, non-empty
+  PropertyId stiffness_scale = kNoProperty;  ///< 1 when absent
+  PropertyId mass_scale = kNoProperty;       ///< 1 when absent
+};
+
 struct ElementBlock {
   std::string name;
   SolidType type = SolidType::Hex8;
@@ -51,6 +61,7 @@ struct ElementBlock {
   /// model-form diagnosis uses them as candidate effects.
   PropertyId stiffness_scale = kNoProperty;
   PropertyId mass_scale = kNoProperty;
+  std::vector<BlockRegion> regions;
   int num_elements() const {
     return static_cast<int>(connectivity.size()) / nodes_per_element(type);
   }

@@ -7,7 +7,7 @@
 ///
 /// Every change sets one property and has a canonical name in the dotted `<entity>.<property>`
 /// form of calibration parameter targets (`joint2.krx`, `added_mass_top.mass`,
-/// `added_spring_base.kz`) and a description in words. Five kinds, written as compact strings:
+/// `added_spring_base.kz`) and a description in words. Six kinds, written as compact strings:
 ///
 /// | kind | text | name |
 /// |---|---|---|
@@ -16,6 +16,7 @@
 /// | add springs to ground | `spring@base:kz=1e7` | `added_spring_base.kz` |
 /// | add a joint | `joint@#17/#42:kx=1e6`, `joint@[0,0,1]/[0,0,1.01]:krx=10` | `added_joint_node17_node42.kx` |
 /// | make a support flexible | `support@post_bottom:kx=6e6` | `support_post_bottom.kx` |
+/// | scale part of a block | `region@foam/[0,0,0.4]/[0.1,0.1,0.5]:stiffness_scale=0.5` | `foam_region_0p05_0p05_0p45.stiffness_scale` |
 ///
 /// Grammar (spaces around the tokens are allowed):
 /// \code{.unparsed}
@@ -23,6 +24,7 @@
 /// setting  := ENTITY "." PROPERTY "=" NUMBER
 /// addition := KIND "@" PLACE ["/" PLACE] ":" PROPERTY "=" NUMBER
 /// KIND     := point_mass | spring | joint | support   (joint takes two places, the others one)
+///           | region                               (BLOCK "/" POINT "/" POINT: a block and a box's corners)
 /// PLACE    := NODE_SET | "#" NODE_ID | "[" X "," Y "," Z "]"    (the last: the node nearest the point)
 /// \endcode
 ///
@@ -36,6 +38,11 @@
 ///   puts a spring to ground of the given (positive) stiffness there instead, one per node: a
 ///   support that gives. Every node must be fixed along that component. Its nominal value is
 ///   +infinity (rigid; `.inf` in data files, null in JSON).
+/// - A region is the part of a block whose elements have their centroid in the box between two
+///   corners (inclusive). Its properties stiffness_scale and mass_scale multiply the block's own
+///   for those elements (absent means 1); its name is the block's with `_region_` and the box's
+///   centre (6 significant digits, `.` written `p` and `-` written `m`). The same box again
+///   refers to the same region.
 /// - Additions at the same place and of the same kind build up one entity:
 ///   `spring@base:kx=1e6` then `spring@base:ky=1e6` give one spring with two components.
 ///
@@ -47,6 +54,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "modalcal/model.hpp"
@@ -65,10 +73,12 @@ struct NodePlace {
 };
 
 struct ModelChange {
-  enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint, FlexibleSupport };
+  enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint, FlexibleSupport, AddRegion };
   Kind kind = Kind::SetProperty;
   std::string entity;              ///< SetProperty: the block, joint, spring or point mass
-  std::vector<NodePlace> places;   ///< additions: one place, two for a joint
+  /// Additions: one place, two for a joint; a region: the block (as a NodeSet-kind place's name)
+  /// and the box's two corners (Point places).
+  std::vector<NodePlace> places;
   std::string property;            ///< e.g. "krx", "mass", "stiffness_scale"
   double value = 0;                ///< the property's value in the changed model
 };
@@ -98,6 +108,11 @@ std::string to_string(const ModelChange& change);
 ///   entity's), a value out of range, a rotational component on a node without rotations.
 ///   `*model` is unchanged when it throws.
 ModelEffect apply_model_change(Model* model, const ModelChange& change);
+
+/// The block (index) and elements a region change (`region@...`) covers on `model`.
+/// \throws std::invalid_argument as apply_model_change for a malformed region or unknown block;
+///   for another kind of change.
+std::pair<int, std::vector<int>> region_elements(const Model& model, const ModelChange& change);
 
 /// The name and description `change` would have on `model`, without changing it.
 /// \throws as apply_model_change.

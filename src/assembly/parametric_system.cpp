@@ -90,6 +90,17 @@ class TermAccumulator {
   std::vector<int> touched_list_;
 };
 
+/// The block's elements grouped by the regions they lie in (region indices, sorted): elements
+/// of one group share their stiffness and mass multipliers.
+std::map<std::vector<int>, std::vector<int>> elements_by_regions(const ElementBlock& block) {
+  std::vector<std::vector<int>> regions_of(block.num_elements());
+  for (size_t r = 0; r < block.regions.size(); ++r)
+    for (int e : block.regions[r].elements) regions_of[e].push_back(static_cast<int>(r));
+  std::map<std::vector<int>, std::vector<int>> groups;
+  for (int e = 0; e < block.num_elements(); ++e) groups[regions_of[e]].push_back(e);
+  return groups;
+}
+
 }  // namespace
 
 ParametricSystem::~ParametricSystem() = default;
@@ -218,7 +229,7 @@ ParametricSystem::ParametricSystem(const Model& model,
 
   const int nnz_int = static_cast<int>(nnz);
   ElementMatrixCache cache;
-  block_volume_.assign(model_.blocks.size(), 0.0);
+  mass_groups_.clear();
   // Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
   // every local DOF, fixed or not.
   auto add_inertia = [&](Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) {
@@ -228,53 +239,64 @@ ParametricSystem::ParametricSystem(const Model& model,
         inertia.row(it.col()) += it.value() * local_inertia.row(a);
     }
   };
-  for (size_t bi = 0; bi < model_.blocks.size(); ++bi) {
-    const ElementBlock& b = model_.blocks[bi];
+  TermAccumulator acc(3, nnz_int);
+  for (const ElementBlock& b : model_.blocks) {
     const int npe = nodes_per_element(b.type);
-    TermAccumulator acc(3, nnz_int);
-    Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
     Matrix translations = Matrix::Zero(3 * npe, 3);
     for (int k = 0; k < npe; ++k) translations.block(3 * k, 0, 3, 3).setIdentity();
     std::vector<int> full(3 * npe);
     Eigen::Matrix3Xd x(3, npe);
-    for (int e = 0; e < b.num_elements(); ++e) {
-      for (int k = 0; k < npe; ++k) {
-        const int v = b.connectivity[e * npe + k];
-        x.col(k) = model_.coordinates[v];
-        for (int c = 0; c < 3; ++c) full[3 * k + c] = dofs.full_index(v, c);
+    // One set of terms per group of elements in the same regions (most blocks: one group).
+    for (const auto& [regions, elements] : elements_by_regions(b)) {
+      Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
+      double volume = 0;
+      for (int e : elements) {
+        for (int k = 0; k < npe; ++k) {
+          const int v = b.connectivity[e * npe + k];
+          x.col(k) = model_.coordinates[v];
+          for (int c = 0; c < 3; ++c) full[3 * k + c] = dofs.full_index(v, c);
+        }
+        const SolidElementMatrices* em;
+        try {
+          em = &cache.get(b.type, x);
+        } catch (const std::invalid_argument& error) {
+          throw std::invalid_argument("block '" + b.name + "', element " + std::to_string(e + 1) + ": " + error.what());
+        }
+        for (int k = 0; k < npe; ++k) volume += em->mass.row(3 * k).sum();
+        scatter(acc, full, {&em->volumetric, &em->deviatoric, &em->mass});
+        add_inertia(inertia, full, em->mass * translations);
       }
-      const SolidElementMatrices* em;
-      try {
-        em = &cache.get(b.type, x);
-      } catch (const std::invalid_argument& error) {
-        throw std::invalid_argument("block '" + b.name + "', element " + std::to_string(e + 1) +
-                                    ": " + error.what());
+      Coefficient bulk, shear, density;
+      if (b.form == ElasticForm::BulkShear) {
+        bulk.factors = {factor(b.modulus_a)};
+        shear.factors = {factor(b.modulus_b)};
+      } else {
+        bulk.factors = {{Coefficient::Kind::BulkFromYoung, b.modulus_a, b.modulus_b}};
+        shear.factors = {{Coefficient::Kind::ShearFromYoung, b.modulus_a, b.modulus_b}};
       }
-      for (int k = 0; k < npe; ++k) block_volume_[bi] += em->mass.row(3 * k).sum();
-      scatter(acc, full, {&em->volumetric, &em->deviatoric, &em->mass});
-      add_inertia(inertia, full, em->mass * translations);
+      density.factors = {factor(b.density)};
+      std::vector<PropertyId> stiffness_scales{b.stiffness_scale}, mass_scales{b.mass_scale};
+      for (int r : regions) {
+        stiffness_scales.push_back(b.regions[r].stiffness_scale);
+        mass_scales.push_back(b.regions[r].mass_scale);
+      }
+      for (PropertyId id : stiffness_scales)
+        if (id != kNoProperty) {
+          bulk.factors.push_back(factor(id));
+          shear.factors.push_back(factor(id));
+        }
+      for (PropertyId id : mass_scales)
+        if (id != kNoProperty) density.factors.push_back(factor(id));
+      mass_groups_.push_back({volume, density});
+      finish(acc, 0, bulk, false);
+      finish(acc, 1, shear, false);
+      finish(acc, 2, density, true, std::move(inertia));
+      acc.reset();
     }
-    Coefficient bulk, shear, density;
-    if (b.form == ElasticForm::BulkShear) {
-      bulk.factors = {factor(b.modulus_a)};
-      shear.factors = {factor(b.modulus_b)};
-    } else {
-      bulk.factors = {{Coefficient::Kind::BulkFromYoung, b.modulus_a, b.modulus_b}};
-      shear.factors = {{Coefficient::Kind::ShearFromYoung, b.modulus_a, b.modulus_b}};
-    }
-    density.factors = {factor(b.density)};
-    if (b.stiffness_scale != kNoProperty) {
-      bulk.factors.push_back(factor(b.stiffness_scale));
-      shear.factors.push_back(factor(b.stiffness_scale));
-    }
-    if (b.mass_scale != kNoProperty) density.factors.push_back(factor(b.mass_scale));
-    finish(acc, 0, bulk, false);
-    finish(acc, 1, shear, false);
-    finish(acc, 2, density, true, std::move(inertia));
   }
 
-  // Discrete entities: one term per (entity, component), so each can be a parameter.
-  TermAccumulator acc(1, nnz_int);
+  // Discrete entities: one term per (entity, component), so each can be a parameter (in the
+  // accumulator's first slot).
   auto discrete_term = [&](const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass,
                            Matrix inertia = Matrix()) {
     scatter(acc, full, {&local});
@@ -559,12 +581,7 @@ Matrix ParametricSystem::rigid_body_inertia(const Vector& p) const {
 double ParametricSystem::total_mass(const Vector& p) const {
   const Vector theta = property_values(p);
   double mass = 0;
-  for (size_t b = 0; b < model_.blocks.size(); ++b) {
-    const ElementBlock& block = model_.blocks[b];
-    double scale = theta[block.density];
-    if (block.mass_scale != kNoProperty) scale *= theta[block.mass_scale];
-    mass += scale * block_volume_[b];
-  }
+  for (const auto& [volume, density] : mass_groups_) mass += density.value(theta) * volume;
   for (const PointMass& m : model_.point_masses)
     if (m.mass != kNoProperty) mass += theta[m.mass];
   return mass;

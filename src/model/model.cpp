@@ -100,6 +100,16 @@ void Model::validate() const {
     for (PropertyId id : {b.modulus_a, b.modulus_b, b.density, b.stiffness_scale, b.mass_scale})
       check_property(id, where);
     if (property_value(b.density) < 0) fail(where + ": density is negative");
+    for (const BlockRegion& r : b.regions) {
+      unique_name(r.name, "region");
+      if (r.elements.empty()) fail("region '" + r.name + "' of " + where + " has no elements");
+      for (size_t k = 0; k < r.elements.size(); ++k)
+        if (r.elements[k] < 0 || r.elements[k] >= b.num_elements() || (k > 0 && r.elements[k] <= r.elements[k - 1]))
+          fail("region '" + r.name + "' of " + where + ": element indices must be sorted, unique and below " +
+               std::to_string(b.num_elements()));
+      check_property(r.stiffness_scale, "region '" + r.name + "'");
+      check_property(r.mass_scale, "region '" + r.name + "'");
+    }
     if (b.form == ElasticForm::YoungPoisson) {
       const double nu = property_value(b.modulus_b);
       if (!(nu > -1.0 && nu < 0.5))

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 
@@ -54,7 +55,8 @@ bool is_plain_name(const std::string& s) {
 const char* const kGrammar =
     "expected ENTITY.PROPERTY=VALUE (e.g. joint2.krx=3.1e5) or KIND@PLACE:PROPERTY=VALUE with KIND "
     "point_mass, spring, joint or support and PLACE a node set, #NODE_ID or [x,y,z] (e.g. "
-    "point_mass@top:mass=0.05, joint@#17/#42:kx=1e6, support@bottom:kx=1e8)";
+    "point_mass@top:mass=0.05, joint@#17/#42:kx=1e6, support@bottom:kx=1e8), or "
+    "region@BLOCK/[x,y,z]/[x,y,z]:stiffness_scale=VALUE";
 
 NodePlace parse_place(const std::string& text, const std::string& token) {
   const std::string t = trim(token);
@@ -107,6 +109,8 @@ const char* kind_keyword(ModelChange::Kind kind) {
       return "joint";
     case ModelChange::Kind::FlexibleSupport:
       return "support";
+    case ModelChange::Kind::AddRegion:
+      return "region";
     case ModelChange::Kind::SetProperty:
       break;
   }
@@ -115,11 +119,12 @@ const char* kind_keyword(ModelChange::Kind kind) {
 
 // ---------------------------------------------------------------------------- entities
 
-enum class EntityKind { None, Block, Joint, Spring, PointMass };
+enum class EntityKind { None, Block, Joint, Spring, PointMass, Region };
 
 struct EntityRef {
   EntityKind kind = EntityKind::None;
-  int index = -1;
+  int index = -1;   ///< of the entity; of its block for a region
+  int region = -1;  ///< in the block's regions
 };
 
 EntityRef find_entity(const Model& model, const std::string& name) {
@@ -131,6 +136,9 @@ EntityRef find_entity(const Model& model, const std::string& name) {
     if (model.ground_springs[k].name == name) return {EntityKind::Spring, static_cast<int>(k)};
   for (size_t k = 0; k < model.point_masses.size(); ++k)
     if (model.point_masses[k].name == name) return {EntityKind::PointMass, static_cast<int>(k)};
+  for (size_t b = 0; b < model.blocks.size(); ++b)
+    for (size_t r = 0; r < model.blocks[b].regions.size(); ++r)
+      if (model.blocks[b].regions[r].name == name) return {EntityKind::Region, static_cast<int>(b), static_cast<int>(r)};
   return {};
 }
 
@@ -154,6 +162,8 @@ std::string entity_kind_name(EntityKind kind) {
       return "spring";
     case EntityKind::PointMass:
       return "point mass";
+    case EntityKind::Region:
+      return "region";
     case EntityKind::None:
       break;
   }
@@ -163,6 +173,8 @@ std::string entity_kind_name(EntityKind kind) {
 std::vector<std::string> entity_names(const Model& model) {
   std::vector<std::string> names;
   for (const ElementBlock& b : model.blocks) names.push_back(b.name);
+  for (const ElementBlock& b : model.blocks)
+    for (const BlockRegion& r : b.regions) names.push_back(r.name);
   for (const Joint& j : model.joints) names.push_back(j.name);
   for (const GroundSpring& s : model.ground_springs) names.push_back(s.name);
   for (const PointMass& m : model.point_masses) {
@@ -184,6 +196,8 @@ std::vector<std::string> settable_properties(const Model& model, EntityRef e) {
       return kStiffnessComponentNames;
     case EntityKind::PointMass:
       return {"mass", "Ixx", "Iyy", "Izz"};
+    case EntityKind::Region:
+      return {"stiffness_scale", "mass_scale"};
     case EntityKind::None:
       break;
   }
@@ -213,6 +227,10 @@ std::vector<PropertyId*> property_slots(Model& model, EntityRef e, const std::st
         if (m.name == entity || m.name.rfind(entity + " (node ", 0) == 0)
           slots.push_back(property == "mass" ? &m.mass : &m.inertia[index_of(kInertiaKeys, property)]);
       return slots;
+    }
+    case EntityKind::Region: {
+      BlockRegion& r = model.blocks[e.index].regions[e.region];
+      return {property == "stiffness_scale" ? &r.stiffness_scale : &r.mass_scale};
     }
     case EntityKind::None:
       break;
@@ -484,6 +502,81 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
   return effect;
 }
 
+/// "0p05", "m1p2e-05": a coordinate as a name may carry it.
+std::string name_tag(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", x == 0 ? 0.0 : x);  // no "-0"
+  std::string tag;
+  for (const char* c = buffer; *c; ++c) tag += *c == '.' ? std::string("p") : *c == '-' ? std::string("m") : *c == '+' ? std::string() : std::string(1, *c);
+  return tag;
+}
+
+/// The elements of `block` whose centroid lies in the box [lo, hi] (a relative 1e-9 of slack).
+std::vector<int> elements_in_box(const Model& model, const ElementBlock& block, const Vec3& lo, const Vec3& hi) {
+  const int npe = nodes_per_element(block.type);
+  const double slack = 1e-9 * ((hi - lo).norm() + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()));
+  std::vector<int> elements;
+  for (int e = 0; e < block.num_elements(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int k = 0; k < npe; ++k) c += model.coordinates[block.connectivity[e * npe + k]];
+    c /= npe;
+    if (((c - lo).array() >= -slack).all() && ((hi - c).array() >= -slack).all()) elements.push_back(e);
+  }
+  return elements;
+}
+
+/// The block a region change names, checking the places' form.
+int region_block(const Model& model, const ModelChange& change, const std::string& text) {
+  const auto& p = change.places;
+  if (change.kind != ModelChange::Kind::AddRegion || p.size() != 3 || p[0].kind != NodePlace::Kind::NodeSet ||
+      p[1].kind != NodePlace::Kind::Point || p[2].kind != NodePlace::Kind::Point)
+    fail(text, "a region is written region@BLOCK/[x,y,z]/[x,y,z]: a block and two corners of a box");
+  const EntityRef block = find_entity(model, p[0].node_set);
+  if (block.kind != EntityKind::Block) {
+    std::vector<std::string> names;
+    for (const ElementBlock& b : model.blocks) names.push_back(b.name);
+    fail(text, "unknown block '" + p[0].node_set + "'; known blocks: " + join(names));
+  }
+  return block.index;
+}
+
+ModelEffect add_region(Model& model, const ModelChange& change, const std::string& text) {
+  const auto& p = change.places;
+  const EntityRef block{EntityKind::Block, region_block(model, change, text)};
+  if (!is_scale_factor(change.property))
+    fail(text, "a region has no property '" + change.property + "'; its properties: stiffness_scale, mass_scale");
+  check_value(text, change.property, change.value);
+  ElementBlock& b = model.blocks[block.index];
+  const Vec3 lo = p[1].point.cwiseMin(p[2].point), hi = p[1].point.cwiseMax(p[2].point);
+  const Vec3 centre = 0.5 * (lo + hi);
+  const std::string name = b.name + "_region_" + name_tag(centre[0]) + "_" + name_tag(centre[1]) + "_" + name_tag(centre[2]);
+  const EntityRef existing = find_entity(model, name);
+  if (existing.kind != EntityKind::None && existing.kind != EntityKind::Region)
+    fail(text, "the name '" + name + "' is already used by " + entity_kind_name(existing.kind) + " '" + name + "'");
+  if (existing.kind == EntityKind::None) {
+    BlockRegion region;
+    region.name = name;
+    region.elements = elements_in_box(model, b, lo, hi);
+    if (region.elements.empty())
+      fail(text, "no element of block '" + b.name + "' has its centroid in the box " + place_text(p[1]) + " to " +
+                     place_text(p[2]));
+    b.regions.push_back(region);
+  }
+  const BlockRegion& region = *std::find_if(b.regions.begin(), b.regions.end(), [&](const BlockRegion& r) { return r.name == name; });
+  ModelEffect effect;
+  effect.name = name + "." + change.property;
+  effect.description = property_words(EntityKind::Block, change.property) + " of part of block " + b.name + ": its " +
+                       std::to_string(region.elements.size()) + " elements in " + place_text(p[1]) + " to " +
+                       place_text(p[2]);
+  effect.value = change.value;
+  PropertyId id = model.find_property(effect.name);
+  effect.nominal_value = id == kNoProperty ? 1.0 : model.properties[id].value;
+  if (id == kNoProperty) id = model.add_property(effect.name, change.value);
+  model.properties[id].value = change.value;
+  for (PropertyId* slot : property_slots(model, find_entity(model, name), change.property)) *slot = id;
+  return effect;
+}
+
 }  // namespace
 
 std::string format_round_trip(double value) {
@@ -505,17 +598,20 @@ ModelChange parse_model_change(const std::string& raw) {
     const std::pair<const char*, ModelChange::Kind> kinds[] = {{"point_mass", ModelChange::Kind::AddPointMass},
                                                                {"spring", ModelChange::Kind::AddSpring},
                                                                {"joint", ModelChange::Kind::AddJoint},
-                                                               {"support", ModelChange::Kind::FlexibleSupport}};
+                                                               {"support", ModelChange::Kind::FlexibleSupport},
+                                                               {"region", ModelChange::Kind::AddRegion}};
     bool known = false;
     for (const auto& [keyword, k] : kinds)
       if (kind == keyword) {
         change.kind = k;
         known = true;
       }
-    if (!known) fail(text, "unknown kind '" + kind + "' before '@'; expected point_mass, spring, joint or support");
+    if (!known)
+      fail(text, "unknown kind '" + kind + "' before '@'; expected point_mass, spring, joint, support or region");
     const size_t colon = text.find(':', at);
     if (colon == std::string::npos || colon > equals)
-      fail(text, "no ':PROPERTY' after the place; e.g. " + kind + "@top:" + (kind == "point_mass" ? "mass" : "kz") + "=...");
+      fail(text, "no ':PROPERTY' after the place; e.g. " + kind + "@top:" +
+                     (kind == "point_mass" ? "mass" : kind == "region" ? "stiffness_scale" : "kz") + "=...");
     const std::string places = text.substr(at + 1, colon - at - 1);
     size_t start = 0;
     for (size_t slash; (slash = places.find('/', start)) != std::string::npos; start = slash + 1)
@@ -548,6 +644,7 @@ ModelEffect apply_model_change(Model* model, const ModelChange& change) {
   const std::string text = to_string(change);
   Model changed = *model;
   const ModelEffect effect = change.kind == ModelChange::Kind::SetProperty ? set_property(changed, change, text)
+                             : change.kind == ModelChange::Kind::AddRegion ? add_region(changed, change, text)
                                                                            : add_entity(changed, change, text);
   try {
     changed.validate();
@@ -556,6 +653,12 @@ ModelEffect apply_model_change(Model* model, const ModelChange& change) {
   }
   *model = std::move(changed);
   return effect;
+}
+
+std::pair<int, std::vector<int>> region_elements(const Model& model, const ModelChange& change) {
+  const int b = region_block(model, change, to_string(change));
+  const Vec3 &a = change.places[1].point, &c = change.places[2].point;
+  return {b, elements_in_box(model, model.blocks[b], a.cwiseMin(c), a.cwiseMax(c))};
 }
 
 ModelEffect describe_model_change(const Model& model, const ModelChange& change) {
