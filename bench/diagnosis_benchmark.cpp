@@ -158,7 +158,7 @@ const std::vector<std::pair<Category, double>> kCategoryWeights = {
 
 enum class Family {
   BlockStiffness, BlockMass, JointComponent, Support, SensorMass, BetweenParts, NodeSet, SurfaceNode,
-  AnyNodeMass, AnyNodeSpring, PartialBlock, Poisson
+  RegionScale, AnyNodeMass, AnyNodeSpring, PartialBlock, Poisson
 };
 const char* family_name(Family f) {
   switch (f) {
@@ -170,6 +170,7 @@ const char* family_name(Family f) {
     case Family::BetweenParts: return "spring between parts";
     case Family::NodeSet: return "node-set spring/mass";
     case Family::SurfaceNode: return "surface-node mass/spring";
+    case Family::RegionScale: return "block region stiffness/mass";
     case Family::AnyNodeMass: return "point mass, any node";
     case Family::AnyNodeSpring: return "spring to ground, any node";
     case Family::PartialBlock: return "stiffness of part of a block";
@@ -448,6 +449,7 @@ std::optional<Family> family_of(const EffectCandidate& c) {
       return Family::JointComponent;
     case ModelChange::Kind::FlexibleSupport: return Family::Support;
     case ModelChange::Kind::AddJoint: return Family::BetweenParts;
+    case ModelChange::Kind::AddRegion: return Family::RegionScale;
     case ModelChange::Kind::AddPointMass:
     case ModelChange::Kind::AddSpring:
       if (!node_place) return Family::NodeSet;
@@ -629,7 +631,7 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
 
 const std::vector<Family> kListFamilies = {Family::BlockStiffness, Family::BlockMass,    Family::JointComponent,
                                            Family::Support,        Family::SensorMass,   Family::BetweenParts,
-                                           Family::NodeSet,        Family::SurfaceNode};
+                                           Family::NodeSet,        Family::SurfaceNode,  Family::RegionScale};
 const std::vector<Family> kOutsideFamilies = {Family::AnyNodeMass, Family::AnyNodeSpring, Family::PartialBlock,
                                               Family::Poisson};
 
@@ -710,7 +712,10 @@ Case draw_case(ProblemContext& ctx, int number, std::uint64_t seed, bool force_c
 // ---------------------------------------------------------------------------------------------
 // Scoring
 
-enum class AcceptedKind { BlockStiffness, BlockMass, Poisson, JointComponent, ExistingMass, Mass, GroundSpring, Support, AddedJoint, Other };
+enum class AcceptedKind {
+  BlockStiffness, BlockMass, RegionStiffness, RegionMass, Poisson, JointComponent, ExistingMass, Mass, GroundSpring,
+  Support, AddedJoint, Other
+};
 
 struct Classified {
   AcceptedKind kind = AcceptedKind::Other;
@@ -736,6 +741,10 @@ Classified classify(const EffectCandidate& c) {
     case ModelChange::Kind::AddSpring: out.kind = AcceptedKind::GroundSpring; break;
     case ModelChange::Kind::FlexibleSupport: out.kind = AcceptedKind::Support; break;
     case ModelChange::Kind::AddJoint: out.kind = AcceptedKind::AddedJoint; break;
+    case ModelChange::Kind::AddRegion:
+      out.kind = ch.property == "stiffness_scale" ? AcceptedKind::RegionStiffness : AcceptedKind::RegionMass;
+      out.entity = ch.places.empty() ? "" : ch.places[0].node_set;  // the block
+      break;
   }
   return out;
 }
@@ -753,7 +762,8 @@ bool kinds_match(const EffectSpec& t, const EffectCandidate& a, const std::optio
   const Classified k = classify(a);
   auto near = [&](double extra) { return where && t.location && (*where - *t.location).norm() <= h2 + extra; };
   const bool stiffness_local = k.kind == AcceptedKind::GroundSpring || k.kind == AcceptedKind::Support ||
-                               k.kind == AcceptedKind::AddedJoint || k.kind == AcceptedKind::JointComponent;
+                               k.kind == AcceptedKind::AddedJoint || k.kind == AcceptedKind::JointComponent ||
+                               k.kind == AcceptedKind::RegionStiffness;
   switch (t.family) {
     case Family::BlockStiffness: return k.kind == AcceptedKind::BlockStiffness && k.entity == t.block;
     case Family::BlockMass: return k.kind == AcceptedKind::BlockMass && k.entity == t.block;
@@ -764,6 +774,11 @@ bool kinds_match(const EffectSpec& t, const EffectCandidate& a, const std::optio
       if (a.name == t.name) return true;
       const Classified tk = classify(as_candidate(t));
       return k.kind == tk.kind && k.component == tk.component && near(0);
+    }
+    case Family::RegionScale: {
+      if (a.name == t.name) return true;
+      const Classified tk = classify(as_candidate(t));
+      return k.kind == tk.kind && k.entity == tk.entity && near(0);
     }
     case Family::SensorMass:
     case Family::AnyNodeMass: return k.kind == AcceptedKind::Mass && near(0);

@@ -139,10 +139,28 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   }
   EXPECT_EQ(sensor_masses, 5);
   EXPECT_EQ(between, 3);  // along x, y and z
+  // Regions three element sizes (1.5) across: the base's 24 elements (centroids x = 0.25 ... 1.75)
+  // fall in two cubes along x, so two regions, each with a stiffness and a mass scale acting on
+  // its elements' nodes; top and pad fit in one cube each and get none (their block-wide scales
+  // do that).
+  std::vector<const EffectCandidate*> regions;
+  for (const EffectCandidate& c : candidates)
+    if (c.change.kind == ModelChange::Kind::AddRegion) regions.push_back(&c);
+  ASSERT_EQ(regions.size(), 4u);
+  for (const EffectCandidate* c : regions) {
+    EXPECT_EQ(c->change.places[0].node_set, "base") << c->name;
+    EXPECT_EQ(c->variable, EffectCandidate::Variable::Log) << c->name;
+    EXPECT_EQ(c->nominal, 1) << c->name;
+    ASSERT_TRUE(c->location) << c->name;
+    EXPECT_LT((*c->location)[0], 2.0) << c->name;
+  }
+  const EffectCandidate* root_region = Find(candidates, "base_region_0p75_0p5_0p75.stiffness_scale");
+  ASSERT_TRUE(root_region);
+  EXPECT_NE(root_region->description.find("its 18 elements"), std::string::npos) << root_region->description;
   // Switched off by the options.
   CandidateOptions only_blocks;
   only_blocks.joints = only_blocks.node_sets = only_blocks.supports = only_blocks.sensor_masses =
-      only_blocks.between_parts = only_blocks.spatial = false;
+      only_blocks.between_parts = only_blocks.spatial = only_blocks.regions = false;
   EXPECT_EQ(generate_candidates(problem, only_blocks).size(), 6u);  // three blocks, two scales each
 }
 
@@ -369,6 +387,56 @@ TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
   CandidateOptions listed;
   listed.spatial = false;
   EXPECT_GT(d.ranking.screened, 3 * static_cast<int>(generate_candidates(hidden, listed).size()));
+}
+
+TEST(Diagnosis, TheRegionScreenFindsAStifferPartOfABlock) {
+  // Regions two element sizes across split the base in four (two along x, two along z). The 8
+  // elements of the one at the clamp's lower half are twice as stiff: E_base, a calibration
+  // parameter, cannot make one part stiffer than the rest, and no listed candidate acts on part of
+  // a block; that region's stiffness scale does. (With two regions per block, one region twice as
+  // stiff is the block twice as stiff and the other half as stiff: E_base would absorb the
+  // difference, and either answer would be right. A part that straddles regions is harder still;
+  // the diagnosis benchmark measures it.)
+  const Problem hidden = WithHiddenEffect({"region@base/[0,0,0]/[1,1,1]:stiffness_scale=2"}, 41);
+  DiagnosisOptions options;
+  options.candidates.region_elements = 2;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_FALSE(d.steps.empty()) << report;
+  const EffectCandidate& first = d.steps[0].effect.candidate;
+  EXPECT_EQ(first.change.kind, ModelChange::Kind::AddRegion) << report;
+  EXPECT_EQ(first.change.property, "stiffness_scale") << report;
+  EXPECT_GT(d.steps[0].effect.value, 1) << report;
+  ASSERT_TRUE(d.steps[0].location) << report;
+  EXPECT_LT((*d.steps[0].location)[0], 1.0) << report;  // the region at the clamp's lower half
+  EXPECT_LT((*d.steps[0].location)[2], 1.0) << report;
+  EXPECT_NEAR(d.steps[0].effect.value, 2, 0.3) << report;
+  // The screen map puts its peak there too: the best-scored element lies in that region.
+  const ScreenMap map = screen_map(hidden.model, d.ranking);
+  Eigen::Index best = 0;
+  map.element_score.maxCoeff(&best);
+  const auto [block, elements] = region_elements(hidden.model, first.change);
+  EXPECT_EQ(hidden.model.blocks[block].name, "base");
+  EXPECT_NE(std::find(elements.begin(), elements.end(), static_cast<int>(best)), elements.end()) << report;
+  EXPECT_EQ(map.region_candidates, 12);  // the base's four regions and the top's two (along z), two scales each
+}
+
+TEST(ScreenMap, NoiseAloneGivesAFlatMapWithoutPeaks) {
+  // The correct model measured with noise: every candidate's prediction is at most a chi-square(1)
+  // variable, so a place's score -log10 p exceeds log10(places) + 2 with probability below 1 %
+  // anywhere on the map (Bonferroni over the places).
+  const Problem correct = WithHiddenEffect({}, 43);
+  DiagnosisOptions options;
+  options.max_steps = 0;
+  const Diagnosis d = diagnose(correct, correct.initial_values(), options);
+  const ScreenMap map = screen_map(correct.model, d.ranking);
+  EXPECT_GT(map.node_candidates, 100);
+  EXPECT_EQ(map.node_score.size(), correct.model.num_nodes());
+  EXPECT_EQ(map.element_score.size(), correct.model.num_elements());
+  const double node_places = (map.node_score.array() > 0).count(), elements = map.element_score.size();
+  EXPECT_LT(map.node_score.maxCoeff(), std::log10(node_places) + 2);
+  EXPECT_LT(map.element_score.maxCoeff(), std::log10(elements) + 2);
+  EXPECT_GE(map.node_score.minCoeff(), 0);
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {

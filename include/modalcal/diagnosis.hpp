@@ -136,6 +136,8 @@ struct Diagnosis {
   std::string localization_note;  ///< why there is none, when there is none
   std::vector<EffectCandidate> candidates;
   EffectRanking ranking;
+  /// Where the model fails: the first step's screen as a map (ScreenMap, effects.hpp).
+  ScreenMap map;
   /// Index into ranking.effects (the first step's ranking) of the first effect to add: 0 when the
   /// first step accepted one, -1 otherwise.
   int recommended = -1;

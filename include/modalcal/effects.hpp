@@ -11,6 +11,7 @@
 /// | where | candidates | variable | bounds |
 /// |---|---|---|---|
 /// | each block | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
+/// | each region of a block (a grid of cells `region_elements` elements across) | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
 /// | each joint, spring | its six components: present ones | log | ×/÷ 10 |
 /// | | absent ones (the rotational ones a nominal model leaves out) | linear from 0 | [0, 100 k_ref] |
 /// | each point mass | `mass` | log | ×/÷ 10 |
@@ -109,6 +110,12 @@ struct CandidateOptions {
   /// A point mass and springs to ground along x, y and z at every free node of the model's
   /// surfaces and of the interfaces between its blocks: effects outside any list of parts.
   bool spatial = true;
+  /// Stiffness and mass scales of the regions of every block: the block's element centroids
+  /// binned in a grid of cubes `region_elements` element sizes across (aligned with the block's
+  /// lowest corner), one region per non-empty cube, for blocks that span more than one cube.
+  bool regions = true;
+  /// A region's size in element sizes. Range: [1, 1000].
+  double region_elements = 3;
   /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;
@@ -215,6 +222,36 @@ struct EffectRanking {
   double screen_seconds = 0, refit_seconds = 0;
   int linear_solves = 0;  ///< of the screen's Jacobian
 };
+
+/// Where the model fails, read off the screen: every spatial and region candidate's predicted
+/// chi-square reduction put where it acts. Under noise alone a candidate's prediction is (at
+/// most) a chi-square(1) variable, its score statistic, wherever it acts: each family's map is
+/// flat up to noise, and a missing effect shows as a peak. The scores combine a place's
+/// candidates as \f$-\log_{10} p\f$ of the best one, p Šidák-corrected for their number
+/// (\f$p = 1 - (1 - p_1)^k\f$), so they too are flat in distribution under noise.
+struct ScreenMap {
+  Vector node_mass;     ///< per model node: an added point mass (NaN where none was screened)
+  Matrix node_spring;   ///< per node, 3 columns: a spring to ground along x, y, z (NaN likewise)
+  Vector node_score;    ///< per node: \f$-\log_{10} p\f$ of its best candidate (0 where none)
+  /// Per element (blocks in model order, elements in block order): its region's stiffness and
+  /// mass scale (the largest if it lies in several; NaN where none was screened), and the score.
+  Vector element_stiffness, element_mass, element_score;
+  int node_candidates = 0, region_candidates = 0;  ///< how many of each the map shows
+  /// A node or region of the map with its score: the map read as a list.
+  struct Place {
+    std::string what;   ///< "node 17 (added mass)", "region base_region_0p75_0p5_0p75 (stiffness)"
+    Vec3 location = Vec3::Zero();  ///< the node, or the centroid of the region's nodes
+    double score = 0;   ///< -log10 p as above
+  };
+  std::vector<Place> places;  ///< every scored node and region, highest score first
+};
+
+/// The map of the screen `ranking` made on `model` (the model it screened; see ScreenMap).
+/// \throws std::invalid_argument if a region candidate does not apply to `model`.
+ScreenMap screen_map(const Model& model, const EffectRanking& ranking);
+
+/// The map's first `rows` places as a table: score, place, location.
+std::string format_screen_map(const ScreenMap& map, int rows = 5);
 
 /// Screens `candidates` at the calibrated parameters `calibrated` of `problem` (weighted by its
 /// measurement noise when it has one, see noise_weighted) and refits the best ones.

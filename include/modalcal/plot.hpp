@@ -57,4 +57,15 @@ struct BarChart {
 /// \throws as plot_panels, and std::invalid_argument if labels and values differ in number.
 void plot_bars(const std::string& path, const std::string& title, const BarChart& chart);
 
+/// Points in 3D coloured by a value, e.g. where a screen predicts a missing effect. Points with a
+/// NaN value are drawn small and grey (the geometry for orientation).
+struct PointCloud {
+  Matrix points;               ///< n x 3 coordinates
+  std::vector<double> values;  ///< one per point
+  std::string value_title;
+  double min = 0, max = 1;     ///< colour range (values above max take its colour)
+};
+/// \throws as plot_panels, and std::invalid_argument if points and values differ in number.
+void plot_point_cloud(const std::string& path, const std::string& title, const PointCloud& cloud);
+
 }  // namespace modalcal

@@ -32,9 +32,52 @@ struct DiagnoseArgs {
   double mesh_check = 1.5;
   bool no_backward = false;
   std::vector<std::string> add;
-  std::string json, vtu, plot, write_problem;
+  double region_size = CandidateOptions().region_elements;
+  std::string json, vtu, plot, map, write_problem;
   bool quiet = false;
 };
+
+/// The screen map's arrays for the VTU file (ScreenMap, effects.hpp).
+void add_screen_map_fields(const ScreenMap& map, VtuFields* fields) {
+  auto array = [](const char* name, const Vector& v) {
+    return VtkArray{name, 1, std::vector<double>(v.data(), v.data() + v.size())};
+  };
+  fields->node_data.push_back(array("screen_score", map.node_score));
+  fields->node_data.push_back(array("screen_added_mass", map.node_mass));
+  const char* springs[3] = {"screen_spring_x", "screen_spring_y", "screen_spring_z"};
+  for (int c = 0; c < 3; ++c) fields->node_data.push_back(array(springs[c], map.node_spring.col(c)));
+  fields->element_data.push_back(array("screen_region_score", map.element_score));
+  fields->element_data.push_back(array("screen_region_stiffness", map.element_stiffness));
+  fields->element_data.push_back(array("screen_region_mass", map.element_mass));
+}
+
+/// The map as a picture: every node coloured by its score, or, where regions were screened and
+/// the node is in no screened node candidate, by the best score of the elements around it.
+void plot_screen_map(const std::string& path, const Problem& problem, const ScreenMap& map) {
+  const Model& model = problem.model;
+  Vector value = map.node_score;
+  std::vector<bool> screened(model.num_nodes(), false);
+  for (int v = 0; v < model.num_nodes(); ++v) screened[v] = !std::isnan(map.node_mass[v]) || !map.node_spring.row(v).array().isNaN().all();
+  int element = 0;
+  for (const ElementBlock& b : model.blocks) {
+    const int npe = nodes_per_element(b.type);
+    for (int e = 0; e < b.num_elements(); ++e, ++element)
+      for (int k = 0; k < npe; ++k) {
+        const int v = b.connectivity[e * npe + k];
+        if (!screened[v]) value[v] = std::max(value[v], map.element_score[element]);
+      }
+  }
+  PointCloud cloud;
+  cloud.points.resize(model.num_nodes(), 3);
+  for (int v = 0; v < model.num_nodes(); ++v) {
+    cloud.points.row(v) = model.coordinates[v].transpose();
+    cloud.values.push_back(value[v]);
+  }
+  cloud.value_title = "-log10 p of the best candidate (noise alone: mostly below 1)";
+  cloud.max = std::max(3.0, value.maxCoeff());
+  plot_point_cloud(path, "where the screen predicts a missing effect: " +
+                             std::filesystem::path(problem.path).filename().string(), cloud);
+}
 
 
 nlohmann::json residual_json(const FitState& fit) {
@@ -172,6 +215,13 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                               {"significant", d.discretization->significant},
                               {"corrected", d.discretization->corrected}};
   }
+  json["map"] = {{"node_candidates", d.map.node_candidates},
+                 {"region_candidates", d.map.region_candidates},
+                 {"places", nlohmann::json::array()}};
+  for (size_t k = 0; k < std::min<size_t>(20, d.map.places.size()); ++k) {
+    const ScreenMap::Place& p = d.map.places[k];
+    json["map"]["places"].push_back({{"what", p.what}, {"location", location_json(p.location)}, {"score", p.score}});
+  }
   json["steps"] = nlohmann::json::array();
   for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
   json["accepted"] = d.accepted();
@@ -272,7 +322,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   require_parameters(problem);
   print_warnings(problem);
   // Refused before the diagnosis runs, not after: no output may replace a file the run reads.
-  for (const std::string* out : {&args.json, &args.plot, &args.write_problem})
+  for (const std::string* out : {&args.json, &args.plot, &args.map, &args.write_problem})
     if (!out->empty()) check_not_input(*out, problem.source_files);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
   require_start_within_bounds(problem, start);
@@ -282,6 +332,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
+  options.candidates.region_elements = args.region_size;
   options.backward = !args.no_backward;
   if (!args.quiet) {
     options.calibration.progress = [](const IterationRecord& r) {
@@ -341,10 +392,15 @@ int run_diagnose(const DiagnoseArgs& args) {
                           problem.source_files);
     std::printf("wrote %s: the problem with the effects the diagnosis kept, for calibrate\n", args.write_problem.c_str());
   }
-  if (!args.vtu.empty() && d.localization) {
+  if (!args.map.empty()) {
+    plot_screen_map(args.map, problem, d.map);
+    std::printf("wrote %s\n", args.map.c_str());
+  }
+  if (!args.vtu.empty()) {
     const ParametricSystem system(problem.model, problem.parameter_targets());
-    for (const std::string& path : write_vtu_set(args.vtu, "diagnose", problem, system, d.calibration.final,
-                                                 localization_fields(problem, *d.localization)))
+    VtuFields fields = d.localization ? localization_fields(problem, *d.localization) : VtuFields();
+    add_screen_map_fields(d.map, &fields);
+    for (const std::string& path : write_vtu_set(args.vtu, "diagnose", problem, system, d.calibration.final, fields))
       std::cout << "wrote " << path << "\n";
   }
   return 0;
@@ -391,7 +447,15 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "write the problem with the kept effects enabled and the final values as starts (YAML), for "
                   "calibrate");
   cmd->add_option("--vtu", args->vtu,
-                  "write the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this directory");
+                  "write the screen map and the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this "
+                  "directory");
+  cmd->add_option("--map", args->map,
+                  "draw the screen map (.png or .svg): where an added mass, spring or region scale would remove "
+                  "the most chi-square");
+  cmd->add_option("--region-size", args->region_size,
+                  "size of the block regions screened, in element sizes (default 3)")
+      ->check(finite_number())
+      ->check(CLI::Range(1.0, 1000.0));
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->callback([args, exit_code] { *exit_code = run_diagnose(*args); });
 }

@@ -415,6 +415,7 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
     if (!forward_step(fitted, &state, options, k < options.max_steps, &d)) break;
   }
   d.ranking = d.rankings.front();
+  d.map = screen_map(problem.model, d.ranking);
   if (options.backward) backward_pass(fitted, &state, options, &d);
 
   d.effects = state.effects;
@@ -451,7 +452,12 @@ std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   }
   text += "\nresidual test: " + verdict(d.before) + "\n";
   if (d.discretization) text += "\n" + format_discretization(*d.discretization);
-  text += "\nwhere the model fails (residual forces of the expanded measured shapes):\n";
+  std::snprintf(line, sizeof line,
+                "\nwhere the model fails (the first step's screen: -log10 p of the best effect at each place; noise "
+                "alone stays below about %.1f):\n",
+                std::log10(std::max<size_t>(1, d.map.places.size())) + 2);
+  text += line + format_screen_map(d.map, 5);
+  text += "a second view, the residual forces of the expanded measured shapes:\n";
   text += d.localization ? format_ranking(*d.localization, 5) : d.localization_note + "\n";
   text += "\nwhich effect is missing (the first step's screen):\n" + format_effect_ranking(d.ranking, 10);
   text += "\n" + format_steps(d);

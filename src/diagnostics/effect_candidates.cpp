@@ -103,7 +103,7 @@ const Joint* find_joint(const Model& model, const std::string& name) {
   return nullptr;
 }
 
-/// The nodes an entity of `model` acts on (a block: all of its nodes; a point mass added on a
+/// The nodes an entity of `model` acts on (a block or a block's region: all of its nodes; a point mass added on a
 /// node set: one part per node, "<entity> (node N)").
 std::vector<int> nodes_of(const Model& model, const std::string& entity) {
   for (const ElementBlock& b : model.blocks)
@@ -111,6 +111,14 @@ std::vector<int> nodes_of(const Model& model, const std::string& entity) {
       std::set<int> unique(b.connectivity.begin(), b.connectivity.end());
       return {unique.begin(), unique.end()};
     }
+  for (const ElementBlock& b : model.blocks)
+    for (const BlockRegion& r : b.regions)
+      if (r.name == entity) {
+        const int npe = nodes_per_element(b.type);
+        std::set<int> unique;
+        for (int e : r.elements) unique.insert(b.connectivity.begin() + e * npe, b.connectivity.begin() + (e + 1) * npe);
+        return {unique.begin(), unique.end()};
+      }
   if (const Joint* j = find_joint(model, entity)) return {j->node_a, j->node_b};
   for (const GroundSpring& g : model.ground_springs)
     if (g.name == entity) return g.nodes;
@@ -218,7 +226,8 @@ class CandidateFactory {
       c.upper = c.screen_value;
       return c;
     }
-    if (effect.nominal_value != 0 && change.kind == ModelChange::Kind::SetProperty) {
+    if (effect.nominal_value != 0 &&
+        (change.kind == ModelChange::Kind::SetProperty || change.kind == ModelChange::Kind::AddRegion)) {
       // A present property (or an absent scale factor, nominal 1): a factor of ten either way.
       c.variable = EffectCandidate::Variable::Log;
       c.nominal = c.screen_value = c.reference = effect.nominal_value;
@@ -312,6 +321,10 @@ class CandidateFactory {
         if (nodes.insert(s.node).second)
           add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
     }
+    if (options_.regions)
+      for (size_t b = 0; b < model_.blocks.size(); ++b)
+        for (const std::string& place : region_places(static_cast<int>(b)))
+          for (const char* property : {"stiffness_scale", "mass_scale"}) add("region@" + place + ":" + property);
     if (options_.between_parts) append_between_parts(fixed, &changes);
     if (options_.spatial)
       for (int v : surface_and_interface_nodes(model_, fixed)) {
@@ -381,6 +394,37 @@ class CandidateFactory {
 
   const Joint* model_joint(const std::string& name) const { return find_joint(model_, name); }
 
+  /// "BLOCK/[lo]/[hi]" for each region of block b: its element centroids binned in cubes of
+  /// region_elements element sizes, each box the tight bounds of one cube's centroids (so that
+  /// no centroid of another cube lies in it); none when one cube holds the whole block.
+  std::vector<std::string> region_places(int b) const {
+    const ElementBlock& block = model_.blocks[b];
+    const int npe = nodes_per_element(block.type), ne = block.num_elements();
+    std::vector<Vec3> centroids(ne, Vec3::Zero());
+    Vec3 lowest = Vec3::Constant(std::numeric_limits<double>::infinity());
+    for (int e = 0; e < ne; ++e) {
+      for (int k = 0; k < npe; ++k) centroids[e] += model_.coordinates[block.connectivity[e * npe + k]];
+      centroids[e] /= npe;
+      lowest = lowest.cwiseMin(centroids[e]);
+    }
+    const double h = scales_.block_size(b), cell = options_.region_elements * h;
+    lowest.array() -= 0.5 * h;  // about the block's lowest corner: cube faces between centroids
+    std::map<std::array<long, 3>, std::pair<Vec3, Vec3>> boxes;  // cube -> bounds of its centroids
+    for (const Vec3& c : centroids) {
+      std::array<long, 3> key;
+      for (int a = 0; a < 3; ++a) key[a] = static_cast<long>(std::floor((c[a] - lowest[a]) / cell));
+      auto [it, fresh] = boxes.try_emplace(key, c, c);
+      if (!fresh) it->second = {it->second.first.cwiseMin(c), it->second.second.cwiseMax(c)};
+    }
+    std::vector<std::string> places;
+    if (boxes.size() < 2) return places;
+    auto point = [](const Vec3& x) {
+      return "[" + format_round_trip(x[0]) + "," + format_round_trip(x[1]) + "," + format_round_trip(x[2]) + "]";
+    };
+    for (const auto& [key, box] : boxes) places.push_back(block.name + "/" + point(box.first) + "/" + point(box.second));
+    return places;
+  }
+
 
   const Problem& problem_;
   const Model& model_;
@@ -426,6 +470,8 @@ bool CandidateOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(gap_factor > 0)) return bad("gap_factor = " + std::to_string(gap_factor) + ": must be > 0");
+  if (!(region_elements >= 1 && region_elements <= 1000))
+    return bad("region_elements = " + std::to_string(region_elements) + ": must be in [1, 1000]");
   if (!(rigid_support_factor >= 10 && rigid_support_factor <= 1e8))
     return bad("rigid_support_factor = " + std::to_string(rigid_support_factor) + ": must be in [10, 1e8]");
   return true;

@@ -122,6 +122,39 @@ void plot_heat_map(const std::string& path, const std::string& title, const Heat
   });
 }
 
+void plot_point_cloud(const std::string& path, const std::string& title, const PointCloud& cloud) {
+  if (cloud.points.cols() != 3 || static_cast<size_t>(cloud.points.rows()) != cloud.values.size())
+    throw std::invalid_argument("plot '" + path + "': " + std::to_string(cloud.values.size()) + " values for " +
+                                std::to_string(cloud.points.rows()) + " points");
+  render(path, 900, 700, [&](std::ostream& script, const fs::path& work) {
+    const fs::path background = work / "background.dat", valued = work / "valued.dat";
+    std::ofstream grey(background), coloured(valued);
+    grey.precision(9);
+    coloured.precision(9);
+    // Lowest values first, so that peaks are drawn on top.
+    std::vector<Eigen::Index> order(cloud.values.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<Eigen::Index>(k);
+    std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) {
+      return !std::isnan(cloud.values[a]) && !std::isnan(cloud.values[b]) && cloud.values[a] < cloud.values[b];
+    });
+    for (Eigen::Index k : order) {
+      const auto x = cloud.points.row(k);
+      if (std::isnan(cloud.values[k]))
+        grey << x[0] << " " << x[1] << " " << x[2] << "\n";
+      else
+        coloured << x[0] << " " << x[1] << " " << x[2] << " " << std::min(cloud.values[k], cloud.max) << "\n";
+    }
+    grey << "nan nan nan\n";  // gnuplot refuses an empty file
+    coloured << "nan nan nan nan\n";
+    script << "set title " << quoted(title) << "\n";
+    script << "set xlabel 'x'\nset ylabel 'y'\nset zlabel 'z'\nset view equal xyz\nset view 60,30\n";
+    script << "set cblabel " << quoted(cloud.value_title) << "\nset cbrange [" << cloud.min << ":" << cloud.max << "]\n";
+    script << "set palette defined (0 '#f0f0f0', 1 '#fdae6b', 2 '#e6550d', 3 '#7f0000')\nunset key\n";
+    script << "splot " << quoted(background.string()) << " using 1:2:3 with points pt 7 ps 0.3 lc rgb '#bbbbbb', "
+           << quoted(valued.string()) << " using 1:2:3:4 with points pt 7 ps 0.8 lc palette\n";
+  });
+}
+
 void plot_bars(const std::string& path, const std::string& title, const BarChart& chart) {
   if (chart.labels.size() != chart.values.size())
     throw std::invalid_argument("plot '" + path + "': " + std::to_string(chart.labels.size()) + " labels for " +
