@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -100,6 +101,20 @@ void Model::validate() const {
     for (PropertyId id : {b.modulus_a, b.modulus_b, b.density, b.stiffness_scale, b.mass_scale})
       check_property(id, where);
     if (property_value(b.density) < 0) fail(where + ": density is negative");
+    // As the problem loader requires of the file's values; also for those set later (--set, changes).
+    auto positive_modulus = [&](PropertyId id, const char* what) {
+      if (!(property_value(id) > 0)) {
+        char value[32];
+        std::snprintf(value, sizeof value, "%g", property_value(id));
+        fail(where + ": " + what + " must be positive, got " + value);
+      }
+    };
+    if (b.form == ElasticForm::YoungPoisson) {
+      positive_modulus(b.modulus_a, "Young's modulus E");
+    } else {
+      positive_modulus(b.modulus_a, "bulk modulus K");
+      positive_modulus(b.modulus_b, "shear modulus G");
+    }
     if (b.form == ElasticForm::YoungPoisson) {
       const double nu = property_value(b.modulus_b);
       if (!(nu > -1.0 && nu < 0.5))
