@@ -6,7 +6,7 @@
 //
 // Exit codes (src/cli/main.cpp): 0 success, 1 numerical failure, 2 bad input.
 
-#include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -17,6 +17,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -25,8 +26,6 @@
 #include <thread>
 #include <utility>
 #include <vector>
-
-#include <unistd.h>
 
 #include "test_util.hpp"
 
@@ -52,7 +51,7 @@ struct Row {
   std::function<void(const fs::path&)> prepare = nullptr;
   /// Optional: more checks after the run (an output's content, a device still a device).
   std::function<void(const fs::path&, const CliRun&)> check = nullptr;
-  size_t max_output = 1200;      ///< most characters of a failing run's output from the message's line on
+  size_t max_output = 1200;  ///< most characters of a failing run's output from the message's line on
   std::vector<std::string> must_not_contain = {};  ///< e.g. a library's words the user should not see
 };
 
@@ -141,7 +140,8 @@ void ModesAfterTheFrfKeepTheirLines(const fs::path&, const CliRun& run) {
   const long lines = std::count(frf.begin(), frf.end(), '\n');
   for (long line : {2L, 21 + lines, 40 + lines})
     EXPECT_NE(run.output.find("dataset 55, line " + std::to_string(line)), std::string::npos)
-        << "no mode at line " << line << " in:\n" << run.output;
+        << "no mode at line " << line << " in:\n"
+        << run.output;
 }
 
 const std::string& Huge() {
@@ -158,7 +158,7 @@ void Symlink(const fs::path& dir, const std::string& target, const std::string& 
 
 /// Checks that the report JSON `name` in the row's folder holds `key` == `value`.
 std::function<void(const fs::path&, const CliRun&)> ReportHas(const std::string& name, const std::string& pointer,
-                                                               const nlohmann::json& value) {
+                                                              const nlohmann::json& value) {
   return [=](const fs::path& dir, const CliRun&) {
     const std::string text = ReadFile((dir / name).string());
     ASSERT_TRUE(nlohmann::json::accept(text)) << name << ":\n" << text.substr(0, 300);
@@ -179,8 +179,8 @@ std::vector<Row> Rows() {
   const std::string report_json = R"({"parameters": [{"name": "E", "final": 900}]})";
   const std::string read_everything =
       "extends: base.yaml\n" + std::string(kModulus) + "measured: {file: data.yaml}\noptions: {num_modes: 4}\n";
-  const Files everything = {{"base.yaml", base}, {"data.yaml", data_yaml}, {"report.json", report_json},
-                            {"problem.yaml", read_everything}};
+  const Files everything = {
+      {"base.yaml", base}, {"data.yaml", data_yaml}, {"report.json", report_json}, {"problem.yaml", read_everything}};
   const std::string modes_everything = "modes <dir>/problem.yaml --params <dir>/report.json --json ";
   auto device_untouched = [](const char* device) {
     return [device](const fs::path&, const CliRun&) {
@@ -188,6 +188,8 @@ std::vector<Row> Rows() {
     };
   };
 
+  // One row a few lines, in the order of the table.
+  // clang-format off
   return {
       // --- no calibration parameters ---
       {"no-params-calibrate", "problem without a `parameters` section: calibrate", {{"bare.yaml", bare}},
@@ -218,7 +220,8 @@ std::vector<Row> Rows() {
       {"element-size-tiny", "`element_size: 1.0e-7` on a 4 m bar",
        {{"fine.yaml", Replace(Bar(), "element_size: 0.5", "element_size: 1.0e-7")}}, "modes <dir>/fine.yaml", 2,
        "fine.yaml:4: mesh: not enough memory"},
-      {"box-1e12-long", "a box 1e12 long", {{"long.yaml", Replace(Bar(), "max: [4, 0.5, 0.75]", "max: [1e12, 0.5, 0.75]")}},
+      {"box-1e12-long", "a box 1e12 long",
+        {{"long.yaml", Replace(Bar(), "max: [4, 0.5, 0.75]", "max: [1e12, 0.5, 0.75]")}},
        "modes <dir>/long.yaml", 2, "not enough memory for a mesh of about"},
       {"starts-huge", "`--starts 1000000000`", {{"bar.yaml", Bar()}},
        "study full-vs-reduced <dir>/bar.yaml --starts 1000000000 --out <dir>/out", 2, "--starts"},
@@ -234,13 +237,15 @@ std::vector<Row> Rows() {
       {"extends-2mb-name", "`extends:` a 2 MB string (a whole file pasted as the name)",
        {{"extends.yaml", "extends: \"" + Bar() + Huge() + "\"\n" + Bar()}}, "modes <dir>/extends.yaml", 2,
        "extends.yaml:1: extends '"},
-      {"element-2mb-value", "`element:` a 2 MB word", {{"named.yaml", Replace(Bar(), "element: hex8", "element: " + Huge())}},
+      {"element-2mb-value", "`element:` a 2 MB word",
+        {{"named.yaml", Replace(Bar(), "element: hex8", "element: " + Huge())}},
        "modes <dir>/named.yaml", 2, "named.yaml:3: mesh: expected one of hex8, tet4, tet10 for 'element', got 'xxxx",
        nullptr, nullptr, 400},
       {"uff-2mb-field", "universal file with a 2 MB field",
        {{"field.uff", "    -1\n   164\n         1" + Huge() + "\n    -1\n"}}, "import-test-data <dir>/field.uff", 2,
        "field.uff:4: dataset 164: the dataset ends"},
-      {"csv-2mb-field", "test CSV with a 2 MB value", {{"field.csv", kCsvHeader + std::string("1,2.0,3,x,") + Huge() + "\n"}},
+      {"csv-2mb-field", "test CSV with a 2 MB value",
+        {{"field.csv", kCsvHeader + std::string("1,2.0,3,x,") + Huge() + "\n"}},
        "import-test-data <dir>/field.csv", 2, "field.csv:2: value '"},
 
       // --- bad numbers on the command line ---
@@ -255,7 +260,8 @@ std::vector<Row> Rows() {
       {"factors-mixed", "`--factors 0 -1 nan`", {{"bar.yaml", Bar()}},
        "study starts <dir>/bar.yaml --factors 0 -1 nan --out <dir>/out", 2, "--factors: '0' must be positive",
        nullptr, nullptr, 120},
-      {"factors-nan", "`--factors nan`", {{"bar.yaml", Bar()}}, "study starts <dir>/bar.yaml --factors nan --out <dir>/out",
+      {"factors-nan", "`--factors nan`", {{"bar.yaml", Bar()}},
+        "study starts <dir>/bar.yaml --factors nan --out <dir>/out",
        2, "--factors: 'nan' is not a finite number", nullptr, nullptr, 120},
       {"factors-negative", "`--factors -1`", {{"bar.yaml", Bar()}},
        "study starts <dir>/bar.yaml --factors -1 --out <dir>/out", 2, "--factors: '-1' must be positive", nullptr,
@@ -313,19 +319,24 @@ std::vector<Row> Rows() {
       // --- extends ---
       {"extends-dev-zero", "`extends: /dev/zero`", {{"zero.yaml", "extends: /dev/zero\n" + Bar()}},
        "modes <dir>/zero.yaml", 2, "zero.yaml:1: extends '/dev/zero': '/dev/zero' is not a regular file"},
-      {"extends-symlink-loop", "`extends:` a symbolic link to itself", {{"problem.yaml", "extends: loop.yaml\n" + Bar()}},
+      {"extends-symlink-loop", "`extends:` a symbolic link to itself",
+        {{"problem.yaml", "extends: loop.yaml\n" + Bar()}},
        "modes <dir>/problem.yaml", 2, "problem.yaml:1: extends 'loop.yaml': cannot open the problem file",
        [](const fs::path& dir) { Symlink(dir, "loop.yaml", "loop.yaml"); }},
       {"extends-missing", "`extends:` a file that does not exist", {{"problem.yaml", "extends: nosuch.yaml\n"}},
-       "modes <dir>/problem.yaml", 2, "problem.yaml:1: extends 'nosuch.yaml': cannot open the problem file '<dir>/nosuch.yaml': no such file"},
+       "modes <dir>/problem.yaml", 2,
+        "problem.yaml:1: extends 'nosuch.yaml': cannot open the problem file '<dir>/nosuch.yaml': no such file"},
       {"extends-itself", "a file that extends itself", {{"self.yaml", "extends: self.yaml\n"}}, "modes <dir>/self.yaml",
        2, "self.yaml:1: extends 'self.yaml', which is already in the chain of extended files"},
-      {"extends-cycle", "two files that extend each other", {{"a.yaml", "extends: b.yaml\n"}, {"b.yaml", "extends: a.yaml\n"}},
+      {"extends-cycle", "two files that extend each other",
+        {{"a.yaml", "extends: b.yaml\n"}, {"b.yaml", "extends: a.yaml\n"}},
        "modes <dir>/a.yaml", 2, "b.yaml:1: extends 'a.yaml', which is already in the chain of extended files"},
-      {"extends-directory", "`extends:` a directory", {{"problem.yaml", "extends: sub\n"}}, "modes <dir>/problem.yaml", 2,
+      {"extends-directory", "`extends:` a directory", {{"problem.yaml", "extends: sub\n"}}, "modes <dir>/problem.yaml",
+        2,
        "problem.yaml:1: extends 'sub': '<dir>/sub' is a directory, not a problem file",
        [](const fs::path& dir) { fs::create_directory(dir / "sub"); }},
-      {"extends-list", "`extends:` a list", {{"problem.yaml", "extends: [a.yaml, b.yaml]\n"}}, "modes <dir>/problem.yaml",
+      {"extends-list", "`extends:` a list", {{"problem.yaml", "extends: [a.yaml, b.yaml]\n"}},
+        "modes <dir>/problem.yaml",
        2, "problem.yaml:1: 'extends' must name a problem file, got a list of 2 items"},
       {"extends-typed-description", "an extended file's `description` is a list",
        {{"top.yaml", "extends: base.yaml\nname: top\n"}, {"base.yaml", "description: [1, 2]\n" + Bar()}},
@@ -349,11 +360,13 @@ std::vector<Row> Rows() {
        "levels deep; a problem file needs a few"},
       {"unknown-section", "a misspelt section (`optoins`)", {{"typo.yaml", Replace(Bar(), "options:", "optoins:")}},
        "modes <dir>/typo.yaml", 2, "typo.yaml:18: unknown key 'optoins'; allowed keys:"},
-      {"unknown-block-key", "an unknown key in a block", {{"colour.yaml", Replace(Bar(), "density: 1.0", "density: 1.0, colour: red")}},
+      {"unknown-block-key", "an unknown key in a block",
+        {{"colour.yaml", Replace(Bar(), "density: 1.0", "density: 1.0, colour: red")}},
        "modes <dir>/colour.yaml", 2, "colour.yaml:7: block 'bar': unknown key 'colour'"},
 
       // --- the model ---
-      {"element-size-zero", "`element_size: 0`", {{"zero.yaml", Replace(Bar(), "element_size: 0.5", "element_size: 0")}},
+      {"element-size-zero", "`element_size: 0`",
+        {{"zero.yaml", Replace(Bar(), "element_size: 0.5", "element_size: 0")}},
        "modes <dir>/zero.yaml", 2, "zero.yaml:4: mesh: 'element_size' must be positive, got 0"},
       {"element-type-unknown", "`element: hex27`", {{"hex27.yaml", Replace(Bar(), "element: hex8", "element: hex27")}},
        "modes <dir>/hex27.yaml", 2, "hex27.yaml:3: mesh: expected one of hex8, tet4, tet10 for 'element'"},
@@ -373,15 +386,19 @@ std::vector<Row> Rows() {
       {"poisson-0.4999999", "`--set bar.nu=0.4999999`: nearly incompressible", {{"plain.yaml", PlainBar()}},
        "modes <dir>/plain.yaml --refine 2 --set bar.nu=0.4999999", 1,
        "block 'bar' has Poisson's ratio 0.4999999, so near 0.5, which makes the material nearly incompressible"},
-      {"target-unknown-property", "a parameter targets `bar.Q`", {{"q.yaml", Replace(Bar(), "targets: [bar.E]", "targets: [bar.Q]")}},
+      {"target-unknown-property", "a parameter targets `bar.Q`",
+        {{"q.yaml", Replace(Bar(), "targets: [bar.E]", "targets: [bar.Q]")}},
        "modes <dir>/q.yaml", 2, "q.yaml:15: parameter 'E': block 'bar' has no property 'Q'"},
       {"target-unknown-entity", "a parameter targets `nobar.E`",
        {{"nobar.yaml", Replace(Bar(), "targets: [bar.E]", "targets: [nobar.E]")}}, "modes <dir>/nobar.yaml", 2,
        "nobar.yaml:15: parameter 'E': unknown entity 'nobar' in target 'nobar.E'"},
-      {"bounds-reversed", "`lower` above `upper`", {{"lu.yaml", Replace(Bar(), "lower: 10, upper: 1e5", "lower: 1e5, upper: 10")}},
+      {"bounds-reversed", "`lower` above `upper`",
+        {{"lu.yaml", Replace(Bar(), "lower: 10, upper: 1e5", "lower: 1e5, upper: 10")}},
        "calibrate <dir>/lu.yaml", 2, "lu.yaml:15: parameter 'E': lower bound 100000 must be below the upper bound 10"},
-      {"initial-outside-bounds", "`initial` above `upper`", {{"init.yaml", Replace(Bar(), "initial: 1000", "initial: 1e7")}},
-       "calibrate <dir>/init.yaml", 2, "init.yaml:15: parameter 'E': 'initial' 10000000 is outside the bounds [10, 100000]"},
+      {"initial-outside-bounds", "`initial` above `upper`",
+        {{"init.yaml", Replace(Bar(), "initial: 1000", "initial: 1e7")}},
+       "calibrate <dir>/init.yaml", 2,
+        "init.yaml:15: parameter 'E': 'initial' 10000000 is outside the bounds [10, 100000]"},
       {"fixed-unknown-node-set", "`fixed:` names a node set that does not exist",
        {{"ns.yaml", Replace(Bar(), "node_set: root", "node_set: rooot")}}, "modes <dir>/ns.yaml", 2,
        "ns.yaml:13: fixed 1: unknown node set 'rooot'; known node sets: root, tip, top_edge"},
@@ -389,7 +406,8 @@ std::vector<Row> Rows() {
        "modes <dir>/dof.yaml", 2, "dof.yaml:13: fixed 1: expected one of x, y, z, rx, ry, rz for item 3 of 'dofs'"},
       {"num-modes-negative", "`num_modes: -4`", {{"nm.yaml", Replace(Bar(), "num_modes: 4", "num_modes: -4")}},
        "modes <dir>/nm.yaml", 2, "nm.yaml:18: options: 'num_modes' must be at least 1, got -4"},
-      {"sensor-unknown-node", "a sensor on node 99999", {{"base.yaml", base}, {"s.yaml", "extends: base.yaml\nsensors:\n  - {node: 99999, directions: [x]}\n"}},
+      {"sensor-unknown-node", "a sensor on node 99999",
+        {{"base.yaml", base}, {"s.yaml", "extends: base.yaml\nsensors:\n  - {node: 99999, directions: [x]}\n"}},
        "modes <dir>/s.yaml", 2, "s.yaml:3: sensor 1: there is no node with id 99999; mesh nodes are 1..54"},
       {"sensor-far-point", "a sensor at a point 96 away from the model",
        {{"base.yaml", base}, {"s.yaml", "extends: base.yaml\nsensors:\n  - {at: [100, 0, 0], directions: [x]}\n"}},
@@ -406,7 +424,8 @@ std::vector<Row> Rows() {
        {{"part.msh", full_msh.substr(0, full_msh.size() * 2 / 3)}, {"part.yaml", OneHexProblem("part.msh")}},
        "modes <dir>/part.yaml", 2, "it is probably truncated"},
       {"gmsh-empty", "an empty .msh file", {{"part.msh", ""}, {"part.yaml", OneHexProblem("part.msh")}},
-       "modes <dir>/part.yaml", 2, "part.msh: is not a Gmsh mesh file: it does not start with $MeshFormat (it is empty)"},
+       "modes <dir>/part.yaml", 2,
+        "part.msh: is not a Gmsh mesh file: it does not start with $MeshFormat (it is empty)"},
       {"gmsh-no-elements", "a .msh file with a header only",
        {{"part.msh", "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n"}, {"part.yaml", OneHexProblem("part.msh")}},
        "modes <dir>/part.yaml", 2, "part.msh: has no elements; was the geometry meshed (gmsh -3)?"},
@@ -418,39 +437,49 @@ std::vector<Row> Rows() {
       {"mesh-directory", "`mesh: {file:}` a directory", {{"part.yaml", OneHexProblem("dir.msh")}},
        "modes <dir>/part.yaml", 2, "part.yaml:1: mesh: <dir>/dir.msh: is a directory, not a mesh file",
        [](const fs::path& dir) { fs::create_directory(dir / "dir.msh"); }},
-      {"mesh-device", "`mesh: {file: /dev/zero, format: gmsh}`", {{"part.yaml", OneHexProblem("/dev/zero", ", format: gmsh")}},
+      {"mesh-device", "`mesh: {file: /dev/zero, format: gmsh}`",
+        {{"part.yaml", OneHexProblem("/dev/zero", ", format: gmsh")}},
        "modes <dir>/part.yaml", 2, "part.yaml:1: mesh: /dev/zero: is not a regular file (a device, FIFO or socket)"},
       {"mesh-symlink-loop", "`mesh: {file:}` a symbolic link to itself", {{"part.yaml", OneHexProblem("loop.msh")}},
-       "modes <dir>/part.yaml", 2, "part.yaml:1: mesh: <dir>/loop.msh: cannot open the mesh file: Too many levels of symbolic links",
+       "modes <dir>/part.yaml", 2,
+        "part.yaml:1: mesh: <dir>/loop.msh: cannot open the mesh file: Too many levels of symbolic links",
        [](const fs::path& dir) { Symlink(dir, "loop.msh", "loop.msh"); }},
       {"mesh-refine", "`--refine` with a mesh file", {{"part.msh", full_msh}, {"part.yaml", OneHexProblem("part.msh")}},
        "modes <dir>/part.yaml --refine 2", 2, "refinement (--refine) applies only to a generated mesh"},
       {"num-modes-above-dofs", "`num_modes: 20` on a model with 12 free DOFs",
        {{"part.msh", full_msh}, {"many.yaml", Replace(OneHexProblem("part.msh"), "num_modes: 3", "num_modes: 20")}},
-       "modes <dir>/many.yaml", 2, "many.yaml:6: options: num_modes 20 ask for 20 modes, but the model has only 12 free DOFs"},
+       "modes <dir>/many.yaml", 2,
+        "many.yaml:6: options: num_modes 20 ask for 20 modes, but the model has only 12 free DOFs"},
       {"all-dofs-fixed", "supports that fix every DOF",
        {{"part.msh", full_msh},
-        {"all.yaml", Replace(Replace(OneHexProblem("part.msh"), "fixed:", "node_sets:\n  all: {box: {min: [0, 0, 0], max: [1, 1, 1]}}\nfixed:"),
-                             "node_set: root", "node_set: all")}},
+        {"all.yaml", Replace(Replace(OneHexProblem("part.msh"), "node_set: root", "node_set: all"), "fixed:",
+                             "node_sets:\n  all: {box: {min: [0, 0, 0], max: [1, 1, 1]}}\nfixed:")}},
        "modes <dir>/all.yaml", 2, "all.yaml:6: fixed: the supports and couplings leave no degree of freedom free"},
       {"num-modes-1000", "`--num-modes 1000` on a model with 144 DOFs", {{"bar.yaml", Bar()}},
        "modes <dir>/bar.yaml --num-modes 1000", 2, "--num-modes 1000: the model of <dir>/bar.yaml has 144 free DOFs"},
       {"num-modes-all-dofs", "`--num-modes` equal to the DOF count (432)", {{"bar.yaml", Bar()}},
-       "modes <dir>/bar.yaml --refine 1.4 --num-modes 432", 2, "has 432 free DOFs, of which at most 431 modes can be found"},
+       "modes <dir>/bar.yaml --refine 1.4 --num-modes 432", 2,
+        "has 432 free DOFs, of which at most 431 modes can be found"},
 
       // --- measured data ---
       {"frequency-1e-300", "a measured frequency of 1e-300 Hz",
-       {{"tiny.yaml", Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: 1.0e-300}]")}},
+       {{"tiny.yaml",
+        Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: 1.0e-300}]")}},
        "calibrate <dir>/tiny.yaml --quiet", 2,
        "tiny.yaml:17: measured mode 1: 'frequency_hz' is 1e-300: measured frequencies must lie between"},
       {"frequency-negative", "a measured frequency of -3 Hz",
        {{"neg.yaml", Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: -3}]")}},
-       "modes <dir>/neg.yaml", 2, "neg.yaml:17: measured mode 1: 'frequency_hz' is -3: measured frequencies must be positive"},
+       "modes <dir>/neg.yaml", 2,
+        "neg.yaml:17: measured mode 1: 'frequency_hz' is -3: measured frequencies must be positive"},
       {"shape-length", "a measured shape with 2 values and no sensors",
-       {{"shape.yaml", Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: 3, shape: [1, 2]}]")}},
-       "modes <dir>/shape.yaml", 2, "shape.yaml:17: measured mode 1: 'shape' has 2 values but the sensors measure 0 DOFs"},
+       {{"shape.yaml",
+        Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: 3, shape: [1, 2]}]")}},
+       "modes <dir>/shape.yaml", 2,
+        "shape.yaml:17: measured mode 1: 'shape' has 2 values but the sensors measure 0 DOFs"},
       {"pair-model-mode-zero", "`pair: {model_mode: 0}`",
-       {{"pair.yaml", Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}", "  modes: [{frequency_hz: 3, pair: {model_mode: 0}}]")}},
+       {{"pair.yaml",
+        Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}",
+        "  modes: [{frequency_hz: 3, pair: {model_mode: 0}}]")}},
        "modes <dir>/pair.yaml", 2, "pair.yaml:17: measured mode 1: 'model_mode' must be at least 1, got 0"},
       {"synthetic-mode-above", "`synthetic: {modes: [1, 99]}` with num_modes 4",
        {{"syn.yaml", Replace(Bar(), "modes: [1, 2]", "modes: [1, 99]")}}, "modes <dir>/syn.yaml", 2,
@@ -467,7 +496,8 @@ std::vector<Row> Rows() {
        "empty.uff: no datasets found"},
       {"uff-truncated", "a dataset without its closing `-1`", {{"cut.uff", "    -1\n   164\n"}},
        "import-test-data <dir>/cut.uff", 2, "cut.uff:2: dataset 164 starting here has no closing '-1' line"},
-      {"uff-no-dataset", "a universal file that is text", {{"text.uff", "hello\n"}}, "import-test-data <dir>/text.uff", 2,
+      {"uff-no-dataset", "a universal file that is text", {{"text.uff", "hello\n"}}, "import-test-data <dir>/text.uff",
+        2,
        "text.uff:1: expected '-1', which opens a dataset, found 'hello'"},
       {"uff-binary-58b", "a binary function (58b) between two modes: skipped by its byte count",
        {{"frf.uff", UffWithBinaryFunction()}}, "import-test-data <dir>/frf.uff", 0, "bytes skipped", nullptr,
@@ -499,7 +529,8 @@ std::vector<Row> Rows() {
       {"csv-two-frequencies", "a CSV mode with two frequencies",
        {{"two.csv", kCsvHeader + std::string("1,2.0,3,x,1\n1,3.0,3,y,1\n")}}, "import-test-data <dir>/two.csv", 2,
        "two.csv:3: mode 1 has frequency 3.0 Hz here but 2 Hz at line 2"},
-      {"csv-duplicate", "a CSV value given twice", {{"dup.csv", kCsvHeader + std::string("1,2.0,3,x,1\n1,2.0,3,x,2\n")}},
+      {"csv-duplicate", "a CSV value given twice",
+        {{"dup.csv", kCsvHeader + std::string("1,2.0,3,x,1\n1,2.0,3,x,2\n")}},
        "import-test-data <dir>/dup.csv", 2, "dup.csv:3: mode 1, node 3, direction x is given twice (first at line 2)"},
 
       // --- outputs never replace an input ---
@@ -511,7 +542,8 @@ std::vector<Row> Rows() {
        "refusing to write '<dir>/data.yaml': it is an input"},
       {"json-over-params", "`--json` names the `--params` report", everything, modes_everything + "<dir>/report.json",
        2, "refusing to write '<dir>/report.json': it is an input"},
-      {"json-over-mesh", "`--json` names the mesh file", {{"part.msh", full_msh}, {"part.yaml", OneHexProblem("part.msh")}},
+      {"json-over-mesh", "`--json` names the mesh file",
+        {{"part.msh", full_msh}, {"part.yaml", OneHexProblem("part.msh")}},
        "modes <dir>/part.yaml --json <dir>/part.msh", 2, "refusing to write '<dir>/part.msh': it is an input"},
       {"json-over-uff", "`--json` names the universal file of the test data",
        {{"u.uff", uff}, {"problem.yaml", base + "measured: {test_data: {file: u.uff}}\n"}},
@@ -522,16 +554,19 @@ std::vector<Row> Rows() {
        "refusing to write '<dir>/run_modes.csv': it is an input"},
       {"vtu-over-data", "`--vtu` would write modes.pvd, the measured data file",
        {{"base.yaml", base}, {"modes.pvd", data_yaml},
-        {"named.yaml", "extends: base.yaml\n" + std::string(kModulus) + "measured: {file: modes.pvd}\noptions: {num_modes: 4}\n"}},
+        {"named.yaml",
+        "extends: base.yaml\n" + std::string(kModulus) + "measured: {file: modes.pvd}\noptions: {num_modes: 4}\n"}},
        "modes <dir>/named.yaml --vtu <dir>", 2, "refusing to write '<dir>/modes.pvd': it is an input"},
       {"plot-over-problem", "`--history-plot` names the problem file", {{"bar.yaml", Bar()}},
-       "calibrate <dir>/bar.yaml --quiet --history-plot <dir>/bar.yaml", 2, "refusing to write '<dir>/bar.yaml': it is an input"},
+       "calibrate <dir>/bar.yaml --quiet --history-plot <dir>/bar.yaml", 2,
+        "refusing to write '<dir>/bar.yaml': it is an input"},
       {"synth-over-problem", "`synth -o` names the problem file", {{"bar.yaml", Bar()}},
        "synth <dir>/bar.yaml --modes 1 -o <dir>/bar.yaml", 2, "refusing to write '<dir>/bar.yaml': it is an input"},
       {"import-csv-over-uff", "`import-test-data --csv` names the file it reads", {{"u.uff", uff}},
        "import-test-data <dir>/u.uff --csv <dir>/u.uff", 2, "refusing to write '<dir>/u.uff': it is an input"},
       {"import-csv-over-problem", "`import-test-data --csv` names the `--problem` file",
-       {{"u.uff", uff}, {"bar.yaml", Bar()}}, "import-test-data <dir>/u.uff --problem <dir>/bar.yaml --csv <dir>/bar.yaml",
+       {{"u.uff", uff}, {"bar.yaml", Bar()}},
+        "import-test-data <dir>/u.uff --problem <dir>/bar.yaml --csv <dir>/bar.yaml",
        2, "refusing to write '<dir>/bar.yaml': it is an input"},
       {"json-symlink-to-problem", "`--json` a symbolic link to the problem file", {{"bar.yaml", Bar()}},
        "modes <dir>/bar.yaml --json <dir>/link.json", 2, "refusing to write '<dir>/link.json': it is an input",
@@ -557,7 +592,8 @@ std::vector<Row> Rows() {
       // --- starts and iterations ---
       {"start-set-outside", "`--set E=1e9` beyond the upper bound 1e5", {{"bar.yaml", Bar()}},
        "calibrate <dir>/bar.yaml --quiet --set E=1e9", 2,
-       "the start of parameter 'E' (from --params, --set or --start-factor) 1e+09 lies outside its bounds [10, 100000]"},
+       "the start of parameter 'E' (from --params, --set or --start-factor) 1e+09 lies outside its bounds "
+       "[10, 100000]"},
       {"start-factor-outside", "`--start-factor 1000` beyond the upper bound", {{"bar.yaml", Bar()}},
        "calibrate <dir>/bar.yaml --quiet --start-factor 1000", 2, "1e+06 lies outside its bounds [10, 100000]"},
       {"start-outside-diagnose", "`diagnose --set E=1` below the lower bound", {{"bar.yaml", Bar()}},
@@ -580,6 +616,7 @@ std::vector<Row> Rows() {
        "calibrate <dir>/latin1.yaml --method reduced-lbfgs --max-iterations 3 --quiet --json <dir>/report.json", 0,
        "1 parameters, 2 measured modes", nullptr, ReportHas("report.json", "/parameters/0/name", "E\xEF\xBF\xBD")},
   };
+  // clang-format on
 }
 
 // --- running a row ---
@@ -751,8 +788,8 @@ TEST(RobustnessTable, EveryBadInputGetsItsExitCodeAndMessageAndTheDocIsCurrent) 
     if (row.check) row.check(o.dir, run);
 
     table += "| " + row.id + " | " + Cell(row.bad) + " | " + Code(Normalized("fullspace_calib " + o.args, o.dir)) +
-             " | " + std::to_string(run.exit_code) + " | " + Code(Shortened(Normalized(MessageLine(run.output, o.message), o.dir))) +
-             " |\n";
+             " | " + std::to_string(run.exit_code) + " | " +
+             Code(Shortened(Normalized(MessageLine(run.output, o.message), o.dir))) + " |\n";
   }
   EXPECT_GE(rows.size(), 60u);
   fs::remove_all(root);
