@@ -227,6 +227,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
 
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;

@@ -319,6 +319,7 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
 
 int run_diagnose(const DiagnoseArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   require_parameters(problem);
   print_warnings(problem);
   // Refused before the diagnosis runs, not after: no output may replace a file the run reads.

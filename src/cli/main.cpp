@@ -7,6 +7,7 @@
 #include <iostream>
 #include <new>
 #include <stdexcept>
+#include <string>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -24,6 +25,21 @@ int main(int argc, char** argv) {
   modalcal::cli::register_compare_command(app, &exit_code);
   modalcal::cli::register_localize_command(app, &exit_code);
   modalcal::cli::register_diagnose_command(app, &exit_code);
+  // CLI11 answers an unknown command with "A subcommand is required": name it and the commands.
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string commands;
+    bool known = false;
+    for (const CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {
+      known = known || command->get_name() == argv[1];
+      commands += (commands.empty() ? "" : ", ") + command->get_name();
+    }
+    if (!known) {
+      const std::string name = argv[1];
+      std::cerr << "error: unknown command '" << name.substr(0, 40) << (name.size() > 40 ? "..." : "")
+                << "'; the commands are " << commands << " (fullspace_calib --help)\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

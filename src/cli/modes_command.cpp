@@ -27,6 +27,7 @@ struct ModesArgs {
 
 int run_modes(const ModesArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   print_warnings(problem);
   const Vector p = choose_parameters(&problem, args.params);
   ParametricSystem system(problem.model, problem.parameter_targets());

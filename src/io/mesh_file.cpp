@@ -18,9 +18,14 @@ namespace detail {
 void mesh_error(const std::string& path, const std::string& message) { throw ProblemError(path, 0, message); }
 
 void require_regular_file(const std::string& path) {
+  namespace fs = std::filesystem;
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) mesh_error(path, "no such mesh file");
-  if (!std::filesystem::is_regular_file(path, ec)) mesh_error(path, "is not a regular file (a directory?)");
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found) mesh_error(path, "no such mesh file");
+  if (ec) mesh_error(path, "cannot open the mesh file: " + ec.message());  // e.g. a loop of symbolic links
+  if (fs::is_directory(status)) mesh_error(path, "is a directory, not a mesh file");
+  if (!fs::is_regular_file(status))
+    mesh_error(path, "is not a regular file (a device, FIFO or socket) and cannot be a mesh file");
 }
 
 }  // namespace detail

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -109,6 +110,20 @@ void Model::validate() const {
                std::to_string(b.num_elements()));
       check_property(r.stiffness_scale, "region '" + r.name + "'");
       check_property(r.mass_scale, "region '" + r.name + "'");
+    }
+    // As the problem loader requires of the file's values; also for those set later (--set, changes).
+    auto positive_modulus = [&](PropertyId id, const char* what) {
+      if (!(property_value(id) > 0)) {
+        char value[32];
+        std::snprintf(value, sizeof value, "%g", property_value(id));
+        fail(where + ": " + what + " must be positive, got " + value);
+      }
+    };
+    if (b.form == ElasticForm::YoungPoisson) {
+      positive_modulus(b.modulus_a, "Young's modulus E");
+    } else {
+      positive_modulus(b.modulus_a, "bulk modulus K");
+      positive_modulus(b.modulus_b, "shear modulus G");
     }
     if (b.form == ElasticForm::YoungPoisson) {
       const double nu = property_value(b.modulus_b);
