@@ -223,24 +223,30 @@ struct EffectRanking {
   int linear_solves = 0;  ///< of the screen's Jacobian
 };
 
-/// Where the model fails, read off the screen: every spatial and region candidate's predicted
-/// chi-square reduction put where it acts. Under noise alone a candidate's prediction is (at
-/// most) a chi-square(1) variable, its score statistic, wherever it acts: each family's map is
-/// flat up to noise, and a missing effect shows as a peak. The scores combine a place's
-/// candidates as \f$-\log_{10} p\f$ of the best one, p Šidák-corrected for their number
+/// Where the model fails, read off the screen: every candidate's predicted chi-square reduction
+/// put where it acts. Under noise alone a candidate's prediction is (at most) a chi-square(1)
+/// variable, its score statistic, wherever it acts: each family's map is flat up to noise, and a
+/// missing effect shows as a peak. The scores combine a place's candidates as
+/// \f$-\log_{10} p\f$ of the best one, p Šidák-corrected for their number
 /// (\f$p = 1 - (1 - p_1)^k\f$), so they too are flat in distribution under noise.
 struct ScreenMap {
   Vector node_mass;     ///< per model node: an added point mass (NaN where none was screened)
   Matrix node_spring;   ///< per node, 3 columns: a spring to ground along x, y, z (NaN likewise)
-  Vector node_score;    ///< per node: \f$-\log_{10} p\f$ of its best candidate (0 where none)
-  /// Per element (blocks in model order, elements in block order): its region's stiffness and
-  /// mass scale (the largest if it lies in several; NaN where none was screened), and the score.
+  /// Per node: \f$-\log_{10} p\f$ of its best candidate (0 where none): the additions at the
+  /// node, and the candidates acting at a place (a joint, a node set, a support) whose nearest
+  /// node it is.
+  Vector node_score;
+  /// Per element (blocks in model order, elements in block order): the stiffness and mass scales
+  /// of its regions and its block (the largest prediction; NaN where none was screened), and the
+  /// score of all of them.
   Vector element_stiffness, element_mass, element_score;
   int node_candidates = 0, region_candidates = 0;  ///< how many of each the map shows
   /// A node or region of the map with its score: the map read as a list.
   struct Place {
-    std::string what;   ///< "node 17 (added mass)", "region base_region_0p75_0p5_0p75 (stiffness)"
-    Vec3 location = Vec3::Zero();  ///< the node, or the centroid of the region's nodes
+    /// "node 17 (added mass)", "region base_region_0p75_0p5_0p75.stiffness_scale",
+    /// "block foam.stiffness_scale", "joint2.kry"
+    std::string what;
+    Vec3 location = Vec3::Zero();  ///< the node, or the centroid of the nodes of the region, block or entity
     double score = 0;   ///< -log10 p as above
   };
   std::vector<Place> places;  ///< every scored node and region, highest score first

@@ -33,65 +33,116 @@ int single_node(const Model& model, const ModelChange& change) {
   return model.find_node(change.places[0].node_id);
 }
 
+/// The map under construction: per-place bests and counts, turned into scores at the end.
+class MapBuilder {
+ public:
+  explicit MapBuilder(const Model& model) : model_(model) {
+    const int nn = model.num_nodes(), ne = model.num_elements();
+    for (const ElementBlock& b : model.blocks) first_element_.push_back(first_element_.back() + b.num_elements());
+    map_.node_mass = Vector::Constant(nn, kNaN);
+    map_.node_spring = Matrix::Constant(nn, 3, kNaN);
+    map_.element_stiffness = map_.element_mass = Vector::Constant(ne, kNaN);
+    node_best_ = Vector::Constant(nn, kNaN);
+    element_best_ = Vector::Constant(ne, kNaN);
+    node_count_.assign(nn, 0);
+    element_count_.assign(ne, 0);
+  }
+
+  void add(const RankedEffect& r) {
+    const EffectCandidate& c = r.candidate;
+    const ModelChange& change = c.change;
+    const double x = r.predicted_reduction;
+    const bool scale = change.property == "stiffness_scale" || change.property == "mass_scale";
+    if (const int v = single_node(model_, change); v >= 0) {
+      const int axis = component_from_name(change.property.substr(1));
+      if (change.kind == ModelChange::Kind::AddPointMass && change.property == "mass")
+        map_.node_mass[v] = larger(map_.node_mass[v], x);
+      else if (change.kind == ModelChange::Kind::AddSpring && axis >= 0 && axis < 3)
+        map_.node_spring(v, axis) = larger(map_.node_spring(v, axis), x);
+      at_node(v, x);
+      ++map_.node_candidates;
+    } else if (change.kind == ModelChange::Kind::AddRegion) {
+      const auto [b, elements] = region_elements(model_, change);
+      on_elements(b, elements, change.property == "stiffness_scale", x);
+      place("region " + c.name, c.location.value_or(Vec3::Zero()), x);
+      ++map_.region_candidates;
+    } else if (const int b = block_index(change); b >= 0 && scale) {
+      std::vector<int> all(model_.blocks[b].num_elements());
+      for (size_t e = 0; e < all.size(); ++e) all[e] = static_cast<int>(e);
+      on_elements(b, all, change.property == "stiffness_scale", x);
+      place("block " + c.name, block_centroid(b), x);
+    } else if (c.location) {  // a joint's or node set's component, a support: at the nearest node
+      at_node(nearest_node(*c.location), x);
+      place(c.name, *c.location, x);
+    }
+  }
+
+  ScreenMap finish() {
+    const int nn = model_.num_nodes(), ne = model_.num_elements();
+    map_.node_score = Vector::Zero(nn);
+    for (int v = 0; v < nn; ++v) {
+      map_.node_score[v] = score(node_best_[v], node_count_[v]);
+      if (std::isnan(map_.node_mass[v]) && map_.node_spring.row(v).array().isNaN().all()) continue;
+      std::string kind = "added mass";  // name the node's best addition
+      for (int c = 0; c < 3; ++c)
+        if (map_.node_spring(v, c) == node_best_[v]) kind = std::string("spring along ") + "xyz"[c];
+      if (map_.node_mass[v] == node_best_[v]) kind = "added mass";
+      map_.places.push_back({"node " + std::to_string(model_.node_ids[v]) + " (" + kind + ")", model_.coordinates[v],
+                             map_.node_score[v]});
+    }
+    map_.element_score = Vector::Zero(ne);
+    for (int k = 0; k < ne; ++k) map_.element_score[k] = score(element_best_[k], element_count_[k]);
+    std::stable_sort(map_.places.begin(), map_.places.end(),
+                     [](const ScreenMap::Place& a, const ScreenMap::Place& b) { return a.score > b.score; });
+    return std::move(map_);
+  }
+
+ private:
+  void at_node(int v, double x) {
+    ++node_count_[v];
+    node_best_[v] = larger(node_best_[v], x);
+  }
+  void on_elements(int b, const std::vector<int>& elements, bool stiffness, double x) {
+    Vector& field = stiffness ? map_.element_stiffness : map_.element_mass;
+    for (int e : elements) {
+      const int k = first_element_[b] + e;
+      field[k] = larger(field[k], x);
+      ++element_count_[k];
+      element_best_[k] = larger(element_best_[k], x);
+    }
+  }
+  void place(const std::string& what, const Vec3& where, double x) { map_.places.push_back({what, where, score(x, 1)}); }
+  int block_index(const ModelChange& change) const {
+    if (change.kind != ModelChange::Kind::SetProperty) return -1;
+    for (size_t b = 0; b < model_.blocks.size(); ++b)
+      if (model_.blocks[b].name == change.entity) return static_cast<int>(b);
+    return -1;
+  }
+  Vec3 block_centroid(int b) const {
+    Vec3 sum = Vec3::Zero();
+    for (int v : model_.blocks[b].connectivity) sum += model_.coordinates[v];
+    return sum / std::max<double>(1, model_.blocks[b].connectivity.size());
+  }
+  int nearest_node(const Vec3& x) const {
+    int best = 0;
+    for (int v = 1; v < model_.num_nodes(); ++v)
+      if ((model_.coordinates[v] - x).squaredNorm() < (model_.coordinates[best] - x).squaredNorm()) best = v;
+    return best;
+  }
+
+  const Model& model_;
+  std::vector<int> first_element_{0};  // of each block, in the model-wide numbering
+  ScreenMap map_;
+  Vector node_best_, element_best_;
+  std::vector<int> node_count_, element_count_;
+};
+
 }  // namespace
 
 ScreenMap screen_map(const Model& model, const EffectRanking& ranking) {
-  const int nn = model.num_nodes(), ne = model.num_elements();
-  std::vector<int> first_element{0};  // of each block, in the model-wide numbering
-  for (const ElementBlock& b : model.blocks) first_element.push_back(first_element.back() + b.num_elements());
-  ScreenMap map;
-  map.node_mass = Vector::Constant(nn, kNaN);
-  map.node_spring = Matrix::Constant(nn, 3, kNaN);
-  map.element_stiffness = map.element_mass = Vector::Constant(ne, kNaN);
-  std::vector<int> node_count(nn, 0), element_count(ne, 0);
-  Vector node_best = Vector::Constant(nn, kNaN), element_best = Vector::Constant(ne, kNaN);
-  for (const RankedEffect& r : ranking.effects) {
-    const ModelChange& change = r.candidate.change;
-    const double x = r.predicted_reduction;
-    if (const int v = single_node(model, change); v >= 0) {
-      if (change.kind == ModelChange::Kind::AddPointMass && change.property == "mass") {
-        map.node_mass[v] = larger(map.node_mass[v], x);
-      } else if (const int c = component_from_name(change.property.substr(1)); change.kind == ModelChange::Kind::AddSpring && c >= 0 && c < 3) {
-        map.node_spring(v, c) = larger(map.node_spring(v, c), x);
-      } else {
-        continue;
-      }
-      ++node_count[v];
-      node_best[v] = larger(node_best[v], x);
-      ++map.node_candidates;
-    } else if (change.kind == ModelChange::Kind::AddRegion) {
-      const auto [b, elements] = region_elements(model, change);
-      const bool stiffness = change.property == "stiffness_scale";
-      const std::string entity = r.candidate.name.substr(0, r.candidate.name.rfind('.'));
-      map.places.push_back({"region " + entity + (stiffness ? " (stiffness)" : " (mass)"),
-                            r.candidate.location.value_or(Vec3::Zero()), score(x, 1)});
-      Vector& field = change.property == "stiffness_scale" ? map.element_stiffness : map.element_mass;
-      for (int e : elements) {
-        const int k = first_element[b] + e;
-        field[k] = larger(field[k], x);
-        ++element_count[k];
-        element_best[k] = larger(element_best[k], x);
-      }
-      ++map.region_candidates;
-    }
-  }
-  map.node_score = Vector::Zero(nn);
-  for (int v = 0; v < nn; ++v) {
-    map.node_score[v] = score(node_best[v], node_count[v]);
-    if (node_count[v] == 0) continue;
-    // Name the node's best candidate.
-    std::string kind = "added mass";
-    for (int c = 0; c < 3; ++c)
-      if (map.node_spring(v, c) == node_best[v]) kind = std::string("spring along ") + "xyz"[c];
-    if (map.node_mass[v] == node_best[v]) kind = "added mass";
-    map.places.push_back({"node " + std::to_string(model.node_ids[v]) + " (" + kind + ")", model.coordinates[v],
-                          map.node_score[v]});
-  }
-  std::stable_sort(map.places.begin(), map.places.end(),
-                   [](const ScreenMap::Place& a, const ScreenMap::Place& b) { return a.score > b.score; });
-  map.element_score = Vector::Zero(ne);
-  for (int k = 0; k < ne; ++k) map.element_score[k] = score(element_best[k], element_count[k]);
-  return map;
+  MapBuilder builder(model);
+  for (const RankedEffect& r : ranking.effects) builder.add(r);
+  return builder.finish();
 }
 
 std::string format_screen_map(const ScreenMap& map, int rows) {
