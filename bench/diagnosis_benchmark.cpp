@@ -8,13 +8,14 @@
 // - single: one effect of a candidate family, drawn among generate_candidates() of the nominal
 //   model: block stiffness or mass scale, joint/spring component, support flexibility, sensor
 //   mass, spring between parts, spring or mass on a free node set, point mass or spring at a
-//   surface node (the spatial family); each family the model has is equally likely;
+//   surface node (the spatial family), stiffness or mass scale of a block's region (a cube of the
+//   candidate grid); each family the model has is equally likely;
 // - outside list: a point mass or a spring to ground at a node drawn among *all* free nodes of
 //   the blocks (interior ones included; the JSON says whether the node happens to be a spatial
 //   candidate), a changed Poisson's ratio of a block (no candidate sets nu), or a stiffer/softer
-//   part of a block. The change grammar cannot express part of a block, so the benchmark makes that
-//   truth itself: it moves the elements whose centroid lies within a drawn radius of a drawn node
-//   of the block into a new block with its own stiffness_scale (same material properties);
+//   part of a block that is no candidate region: the elements whose centroid lies within a drawn
+//   radius of a drawn node of the block (a ball, not a cube of the candidates' grid), which the
+//   benchmark moves into a new block with its own stiffness_scale (same material properties);
 // - multi: two or three effects at once, each drawn as for single or outside list;
 // - below noise: one effect sized to shift a frequency by 0.01-0.1 % (the noise is 0.2 %);
 // - finer mesh: the truth on a mesh refined 1.5x or 2x the problem's (LoadOptions refinement,
@@ -937,8 +938,8 @@ int main(int argc, char** argv) {
               "first order); lambda* = (sqrt(c) + 1.2816)^2, c = chi2_1 critical value at alpha/N candidates: 90 %% power "
               "of the first step's Bonferroni test; multi-effect cases: every effect alone\n");
   std::printf("# sizes: largest noise-free frequency shift drawn log-uniform in [%g, %g] (below noise: [1e-4, 1e-3]), "
-              "value set by secant/bisection on forward solves; part of a block: the truth's block split in two (the "
-              "change grammar cannot say it)\n",
+              "value set by secant/bisection on forward solves; part of a block: the truth's block split in two (a "
+              "ball of elements, no candidate region)\n",
               args.draw.min_shift, args.draw.max_shift);
   std::fflush(stdout);
 
