@@ -237,6 +237,7 @@ struct ProblemContext {
   double refinement = 1;
   std::vector<double> fine_ratios;  // refinements (times the problem's) whose meshes hold every sensor position
   std::map<double, Problem> fine;
+  std::optional<Problem> check;  // the finer mesh of the diagnosis's discretization estimate
   SynthesisOptions synthesis;
   std::vector<double> base_hz;
   Vector truth;
@@ -839,6 +840,7 @@ struct Args {
   bool dry_run = false;
   std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
+  double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
   std::string command;
 };
 
@@ -847,6 +849,9 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
+      "                    [--mesh-check R]\n"
+      "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
+      "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
       "  --controls adds M control cases per problem after the N drawn ones (cheap false-alarm counts);\n"
       "  --case-list: run only these case numbers (with the same --cases/--controls: reproduces them);\n"
@@ -894,6 +899,7 @@ int main(int argc, char** argv) {
       } else if (a == "--seed-base") args.seed_base = std::stoull(next());
       else if (a == "--json") args.json_path = next();
       else if (a == "--significance") args.significance = std::stod(next());
+      else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
       else if (a == "--min-shift") args.draw.min_shift = std::stod(next());
@@ -972,6 +978,13 @@ int main(int argc, char** argv) {
       std::printf("\n");
     }
     find_fine_ratios(&ctx, args.fine_ratios);
+    if (args.mesh_check > 0) {  // what `diagnose` loads for its default --mesh-check
+      LoadOptions load;
+      load.refinement = ctx.refinement * args.mesh_check;
+      load.nearest_sensor_nodes = true;
+      ctx.check = load_problem(ctx.path, load);
+      std::printf("# discretization estimate on a mesh x%g: %d nodes\n", args.mesh_check, ctx.check->model.num_nodes());
+    }
     const int n_cases = list_value(args.cases, j), n_controls = list_value(args.controls, j);
     std::printf("%-5s %-6s %-26s %-7s %-8s %-34s %-7s %-6s %-9s %-9s %s\n", "case", "seed", "category", "lambda", "detect",
                 "truth", "flag", "right", "p final", "cpu s", "accepted");
@@ -1011,6 +1024,7 @@ int main(int argc, char** argv) {
           DiagnosisOptions options;
           options.ranking.significance = args.significance;
           options.test.significance = args.significance;
+          if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();
           const double cpu0 = cpu_seconds();
           const Diagnosis d = diagnose(problem, problem.initial_values(), options);

@@ -154,7 +154,7 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
     ASSERT_TRUE(c->location) << c->name;
     EXPECT_LT((*c->location)[0], 2.0) << c->name;
   }
-  const EffectCandidate* root_region = Find(candidates, "base_region_0p75_0p5_0p75.stiffness_scale");
+  const EffectCandidate* root_region = Find(candidates, "base_region_0p75_0p5_0p75_n18.stiffness_scale");
   ASSERT_TRUE(root_region);
   EXPECT_NE(root_region->description.find("its 18 elements"), std::string::npos) << root_region->description;
   // Switched off by the options.

@@ -168,7 +168,7 @@ TEST(ModelChange, RegionsScalePartOfABlockOnTopOfItsOwnMultiplier) {
   apply_model_change(&halves, parse_model_change("bar.stiffness_scale=0.5"));
   const ModelEffect left = apply_model_change(&halves, parse_model_change("region@bar/[0,0,0]/[2,0.5,0.75]:stiffness_scale=0.5"));
   apply_model_change(&halves, parse_model_change("region@bar/[4,0.5,0.75]/[2,0,0]:stiffness_scale=0.5"));
-  EXPECT_EQ(left.name, "bar_region_1_0p25_0p375.stiffness_scale");
+  EXPECT_EQ(left.name, "bar_region_1_0p25_0p375_n8.stiffness_scale");
   EXPECT_EQ(left.nominal_value, 1);
   EXPECT_NE(left.description.find("part of block bar: its 8 elements"), std::string::npos) << left.description;
   ASSERT_EQ(halves.blocks[0].regions.size(), 2u);
@@ -184,7 +184,7 @@ TEST(ModelChange, RegionsScalePartOfABlockOnTopOfItsOwnMultiplier) {
   EXPECT_EQ(overlapping.blocks[0].regions.size(), 2u);
   EXPECT_LT(testing::RelativeDifference(Frequencies(overlapping, 4), f0 / 2), 1e-9);
   // Its property is set like any other once the region exists.
-  apply_model_change(&overlapping, parse_model_change("bar_region_2_0_0.mass_scale=2"));
+  apply_model_change(&overlapping, parse_model_change("bar_region_2_0_0_n16.mass_scale=2"));
   EXPECT_NE(overlapping.blocks[0].regions[0].mass_scale, kNoProperty);
 
   // Part of the bar only: stiffer near the root raises the first (bending) frequency more

@@ -243,7 +243,7 @@ struct ScreenMap {
   int node_candidates = 0, region_candidates = 0;  ///< how many of each the map shows
   /// A node or region of the map with its score: the map read as a list.
   struct Place {
-    /// "node 17 (added mass)", "region base_region_0p75_0p5_0p75.stiffness_scale",
+    /// "node 17 (added mass)", "region base_region_0p75_0p5_0p75_n18.stiffness_scale",
     /// "block foam.stiffness_scale", "joint2.kry"
     std::string what;
     Vec3 location = Vec3::Zero();  ///< the node, or the centroid of the nodes of the region, block or entity

@@ -43,7 +43,7 @@ enum class ElasticForm { BulkShear, YoungPoisson };
 /// diagnosis's candidates "stiffer or heavier here" (model_change.hpp, `region@...`). Regions of
 /// one block may overlap; an element in several carries the product of their multipliers.
 struct BlockRegion {
-  std::string name;           ///< unique among the model's entities, e.g. "foam_region_0p05_0_0p45"
+  std::string name;           ///< unique among the model's entities, e.g. "foam_region_0p05_0_0p45_n12"
   std::vector<int> elements;  ///< indices into the block's elements, sorted, unique, non-empty
   PropertyId stiffness_scale = kNoProperty;  ///< 1 when absent
   PropertyId mass_scale = kNoProperty;       ///< 1 when absent

@@ -16,7 +16,7 @@
 /// | add springs to ground | `spring@base:kz=1e7` | `added_spring_base.kz` |
 /// | add a joint | `joint@#17/#42:kx=1e6`, `joint@[0,0,1]/[0,0,1.01]:krx=10` | `added_joint_node17_node42.kx` |
 /// | make a support flexible | `support@post_bottom:kx=6e6` | `support_post_bottom.kx` |
-/// | scale part of a block | `region@foam/[0,0,0.4]/[0.1,0.1,0.5]:stiffness_scale=0.5` | `foam_region_0p05_0p05_0p45.stiffness_scale` |
+/// | scale part of a block | `region@foam/[0,0,0.4]/[0.1,0.1,0.5]:stiffness_scale=0.5` | `foam_region_0p05_0p05_0p45_n12.stiffness_scale` |
 ///
 /// Grammar (spaces around the tokens are allowed):
 /// \code{.unparsed}
@@ -40,9 +40,9 @@
 ///   +infinity (rigid; `.inf` in data files, null in JSON).
 /// - A region is the part of a block whose elements have their centroid in the box between two
 ///   corners (inclusive). Its properties stiffness_scale and mass_scale multiply the block's own
-///   for those elements (absent means 1); its name is the block's with `_region_` and the box's
-///   centre (6 significant digits, `.` written `p` and `-` written `m`). The same box again
-///   refers to the same region.
+///   for those elements (absent means 1); its name is the block's with `_region_`, the box's
+///   centre (6 significant digits, `.` written `p` and `-` written `m`) and `_n` with its number
+///   of elements. The same box again refers to the same region.
 /// - Additions at the same place and of the same kind build up one entity:
 ///   `spring@base:kx=1e6` then `spring@base:ky=1e6` give one spring with two components.
 ///

@@ -20,9 +20,13 @@ double larger(double a, double b) { return std::isnan(a) ? b : std::max(a, b); }
 double score(double best, int count) {
   if (count == 0 || !(best > 0)) return 0;
   const double p1 = chi_square_upper_tail(best, 1);
-  // 1 - (1 - p1)^k, accurate for small p1.
-  const double p = -std::expm1(count * std::log1p(-std::min(p1, 1.0 - 1e-16)));
-  return -std::log10(std::max(p, std::numeric_limits<double>::min()));
+  if (p1 < 1e-15) {
+    // 1 - (1 - p1)^k = k p1 to rounding; past the doubles' range, log p1 from the tail's
+    // asymptote erfc(z) ~ exp(-z^2) / (z sqrt(pi)), z^2 = best / 2.
+    const double log10_p1 = p1 > 1e-300 ? std::log10(p1) : (-0.5 * best - 0.5 * std::log(M_PI * best / 2)) / std::log(10.0);
+    return -(std::log10(static_cast<double>(count)) + log10_p1);
+  }
+  return -std::log10(-std::expm1(count * std::log1p(-p1)));
 }
 
 /// The node a single-node addition acts on, or -1.

@@ -549,19 +549,20 @@ ModelEffect add_region(Model& model, const ModelChange& change, const std::strin
   ElementBlock& b = model.blocks[block.index];
   const Vec3 lo = p[1].point.cwiseMin(p[2].point), hi = p[1].point.cwiseMax(p[2].point);
   const Vec3 centre = 0.5 * (lo + hi);
-  const std::string name = b.name + "_region_" + name_tag(centre[0]) + "_" + name_tag(centre[1]) + "_" + name_tag(centre[2]);
+  const std::vector<int> elements = elements_in_box(model, b, lo, hi);
+  if (elements.empty())
+    fail(text, "no element of block '" + b.name + "' has its centroid in the box " + place_text(p[1]) + " to " +
+                   place_text(p[2]));
+  // The centre and the element count tell regions apart (two boxes about one centre differ in it).
+  const std::string name = b.name + "_region_" + name_tag(centre[0]) + "_" + name_tag(centre[1]) + "_" +
+                           name_tag(centre[2]) + "_n" + std::to_string(elements.size());
   const EntityRef existing = find_entity(model, name);
   if (existing.kind != EntityKind::None && existing.kind != EntityKind::Region)
     fail(text, "the name '" + name + "' is already used by " + entity_kind_name(existing.kind) + " '" + name + "'");
-  if (existing.kind == EntityKind::None) {
-    BlockRegion region;
-    region.name = name;
-    region.elements = elements_in_box(model, b, lo, hi);
-    if (region.elements.empty())
-      fail(text, "no element of block '" + b.name + "' has its centroid in the box " + place_text(p[1]) + " to " +
-                     place_text(p[2]));
-    b.regions.push_back(region);
-  }
+  if (existing.kind == EntityKind::Region && model.blocks[existing.index].regions[existing.region].elements != elements)
+    fail(text, "region '" + name + "' exists with other elements (another box about the same centre); give this "
+                   "box other corners");
+  if (existing.kind == EntityKind::None) b.regions.push_back({name, elements});
   const BlockRegion& region = *std::find_if(b.regions.begin(), b.regions.end(), [&](const BlockRegion& r) { return r.name == name; });
   ModelEffect effect;
   effect.name = name + "." + change.property;
