@@ -1,4 +1,4 @@
-// The Gmsh seeds of fuzz/seeds/gmsh/ (see README.md there): a 2x1x1 hex8 box and a tet10 box.
+// The Gmsh seeds of fuzz/seeds/gmsh/ (see fuzz/seeds/README.md): a 2x1x1 hex8 box and a tet10 box.
 SetFactory("Built-in");
 Point(1) = {0, 0, 0, 1};
 l[] = Extrude {2, 0, 0} { Point{1}; Layers{2}; };

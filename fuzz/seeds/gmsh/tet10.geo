@@ -1,4 +1,4 @@
-// A tet10 seed for fuzz/seeds/gmsh/ (see README.md there).
+// A tet10 seed for fuzz/seeds/gmsh/ (see fuzz/seeds/README.md).
 Point(1) = {0, 0, 0, 1}; Point(2) = {1, 0, 0, 1}; Point(3) = {0, 1, 0, 1}; Point(4) = {0, 0, 1, 1};
 Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 1}; Line(4) = {1, 4}; Line(5) = {2, 4}; Line(6) = {3, 4};
 Curve Loop(1) = {1, 2, 3}; Plane Surface(1) = {1};
