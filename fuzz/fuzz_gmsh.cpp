@@ -3,11 +3,12 @@
 //
 // Only ASCII MSH 2 inputs ("$MeshFormat" then a version 2.x, file type 0) reach Gmsh here; the
 // rest go no further than our own check of the first line. Gmsh 4.8's MSH 4 reader crashes on
-// malformed files within seconds of fuzzing (a bad free in GModel::_readMSH4, a free of memory it
-// never allocated in GEO_Internals::_freeAll from ~GModel, std::terminate on a std::length_error
-// thrown inside _readMSH4; inputs in docs/fuzzing.md), and validating an MSH 4 file before Gmsh
-// reads it would take a second MSH 4 parser. These crashes are Gmsh's and are reported, not fixed,
-// here; fuzzing MSH 4 would find nothing else until they are.
+// malformed files within seconds of fuzzing (fuzz/known-crashes/gmsh/: a bad free in
+// GModel::_readMSH4, a free of memory it never allocated in GEO_Internals::_freeAll from
+// ~GModel, std::terminate on a std::length_error thrown inside _readMSH4; stacks in
+// docs/fuzzing.md), and checking an MSH 4 file before Gmsh reads it would take a second MSH 4
+// parser. Its MSH 2 reader crashed on an element naming an undefined node; the reader now checks
+// the $Nodes and $Elements lines of an ASCII MSH 2 file first (fuzz/regressions/gmsh/).
 #include <cstring>
 #include <string>
 

@@ -312,7 +312,7 @@ TEST(HostileInputs, GmshFaultsAreNamedByTheirCause) {
   std::string duplicate = nodes, not_finite = nodes;
   duplicate.replace(duplicate.find("6 1 0 1"), 7, "5 1 0 1");
   not_finite.replace(not_finite.find("2 1 0 0"), 7, "2 nan 0 0");
-  for (const Case& c : {Case{OneHexMsh(duplicate), "a node id is defined twice (Skipping duplicate node 5)"},
+  for (const Case& c : {Case{OneHexMsh(duplicate), "a node id is defined twice (node 5, at lines 15 and 16)"},
                         Case{OneHexMsh(not_finite), "node 2 has a coordinate that is not a finite number"},
                         Case{full.substr(0, full.size() * 2 / 3), "it is probably truncated"}}) {
     WriteTempFile("part.msh", c.msh);
