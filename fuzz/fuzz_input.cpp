@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -36,8 +37,10 @@ int read_as_file(const uint8_t* data, size_t size, const std::string& name,
   write_file(path, data, size);
   try {
     read(path);
-  } catch (const ProblemError&) {
-    // The documented answer to bad input.
+  } catch (const ProblemError& e) {
+    // The documented answer to bad input; MODALCAL_FUZZ_VERBOSE=1 shows it (to check a seed).
+    static const bool verbose = std::getenv("MODALCAL_FUZZ_VERBOSE") != nullptr;
+    if (verbose) std::fprintf(stderr, "input error: %s\n", e.what());
   }
   return 0;
 }
