@@ -436,7 +436,8 @@ std::string UffReader::read_dataset_55(UffRecords& r, const UffBlock& b) {
   if (std::string reason = skip_reason(r, kind_line, kind); !reason.empty()) return reason;
   const int ints_line = r.line();
   const std::vector<double> first = r.peek("record 7");
-  if (first.size() < 2 || first[0] < 2 || first[0] != std::floor(first[0]))
+  // At most 1e6 integers: more than any dataset has, and the count must convert to an int.
+  if (first.size() < 2 || first[0] < 2 || first[0] > 1e6 || first[0] != std::floor(first[0]))
     r.fail(ints_line,
            "record 7 must start with the number of integer values (at least 2: load case, mode number) and of real "
            "values");
