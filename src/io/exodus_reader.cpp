@@ -5,10 +5,12 @@
 #include <cctype>
 #include <cstdint>
 #include <fstream>
+#include <set>
 
 #include <exodusII.h>
 
 #include "io/mesh_file_readers.hpp"
+#include "io/text_util.hpp"
 
 namespace modalcal::detail {
 
@@ -42,23 +44,33 @@ class ClassicHeader {
     size();  // numrecs (or STREAMING)
     const uint64_t dims = list(kDimension, "dimension");
     for (uint64_t d = 0; d < dims && !stop_; ++d) {
-      name("dimension");
+      dimensions_.push_back(name("dimension"));
       size();
     }
     attributes("global attribute");
     const uint64_t vars = list(kVariable, "variable");
     for (uint64_t v = 0; v < vars && !stop_; ++v) {
-      name("variable");
+      const std::string variable = name("variable");
+      std::vector<std::string> shape;
       const uint64_t rank = count("variable dimensions", version_ == 5 ? 8 : 4);
-      for (uint64_t k = 0; k < rank && !stop_; ++k)
-        if (const uint64_t id = size(); !stop_ && id >= dims)
+      for (uint64_t k = 0; k < rank && !stop_; ++k) {
+        const uint64_t id = size();
+        if (stop_) break;
+        if (id >= dims)
           fail("a variable has dimension id " + std::to_string(id) + ", but the file has " + std::to_string(dims) +
                " dimensions");
+        shape.push_back(dimensions_[static_cast<size_t>(id)]);
+      }
+      if (!stop_) check_shape(variable, shape);
       attributes("variable attribute");
       type();
       size();                                   // vsize
       take(version_ == 1 ? 4 : 8, "a variable's data offset");  // begin
     }
+    if (stop_) return;
+    std::sort(dimensions_.begin(), dimensions_.end());
+    if (const auto twice = std::adjacent_find(dimensions_.begin(), dimensions_.end()); twice != dimensions_.end())
+      fail("two dimensions are named '" + excerpt(*twice, 60) + "'");
   }
 
  private:
@@ -110,7 +122,53 @@ class ClassicHeader {
     }
     at_ += static_cast<size_t>(padded);
   }
-  void name(const std::string& what) { skip(count("characters of a " + what + " name", 1), "a " + what + " name"); }
+  std::string name(const std::string& what) {
+    const uint64_t n = count("characters of a " + what + " name", 1);
+    const size_t start = at_;
+    skip(n, "a " + what + " name");
+    return stop_ ? std::string() : bytes_.substr(start, static_cast<size_t>(n));
+  }
+
+  // The Exodus library reads these variables into buffers it sizes by the dimensions of these
+  // names, so a variable of another shape (or a second variable of the same name) would overrun
+  // them.
+  void check_shape(const std::string& variable, const std::vector<std::string>& shape) {
+    if (!variables_.insert(variable).second) fail("two variables are named '" + excerpt(variable, 60) + "'");
+    // The variable's name without a trailing number, and that number.
+    size_t digits = variable.size();
+    while (digits > 0 && std::isdigit(static_cast<unsigned char>(variable[digits - 1]))) --digits;
+    const std::string stem = variable.substr(0, digits), k = variable.substr(digits);
+    std::vector<std::string> expected;
+    if (variable == "coordx" || variable == "coordy" || variable == "coordz" || variable == "node_num_map")
+      expected = {"num_nodes"};
+    else if (variable == "coord")
+      expected = {"num_dim", "num_nodes"};
+    else if (variable == "elem_num_map")
+      expected = {"num_elem"};
+    else if (stem == "connect" && !k.empty())
+      expected = {"num_el_in_blk" + k, "num_nod_per_el" + k};
+    else if ((stem == "node_ns" || stem == "dist_fact_ns") && !k.empty())
+      expected = {"num_nod_ns" + k};
+    else if ((stem == "elem_ss" || stem == "side_ss") && !k.empty())
+      expected = {"num_side_ss" + k};
+    else if (variable == "eb_names" || variable == "ns_names" || variable == "ss_names")
+      expected = {variable == "eb_names" ? "num_el_blk" : variable == "ns_names" ? "num_node_sets" : "num_side_sets",
+                  "len_name"};
+    else if ((stem == "eb_prop" && !k.empty()) || variable == "eb_status")
+      expected = {"num_el_blk"};
+    else if ((stem == "ns_prop" && !k.empty()) || variable == "ns_status")
+      expected = {"num_node_sets"};
+    else if ((stem == "ss_prop" && !k.empty()) || variable == "ss_status")
+      expected = {"num_side_sets"};
+    else
+      return;
+    if (shape != expected) {
+      std::string found;
+      for (const std::string& d : shape) found += (found.empty() ? "" : ", ") + excerpt(d, 40);
+      fail("variable '" + excerpt(variable, 40) + "' has the dimensions (" + found + "); Exodus II gives it (" +
+           expected[0] + (expected.size() > 1 ? ", " + expected[1] : "") + ")");
+    }
+  }
   uint64_t type() {
     const uint64_t t = take(4, "a type");
     static const int sizes[] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};
@@ -132,6 +190,8 @@ class ClassicHeader {
   bool stop_ = false;  // the header runs past the bytes read
   int version_ = 0;
   size_t at_ = 0;
+  std::vector<std::string> dimensions_;  // by id
+  std::set<std::string> variables_;
 };
 
 class ExodusFile {
