@@ -22,12 +22,15 @@ std::string quote(const std::string& s) { return "'" + s + "'"; }
 // Format Specification"), walked before the netCDF library reads it: netCDF 4.9 trusts the counts
 // it finds there and allocates and clears that much (a count off by a byte ran for minutes in
 // nc_get_NC). Every count must fit in the bytes left, every type be known and every dimension id
-// exist; the variables' data is not looked at. Only the first 16 MB are read: a header longer than
-// that is taken as it is.
+// exist, no dimension be longer than the file, and the variables Exodus reads have the shapes it
+// sizes their buffers by; the variables' data is not looked at. Only the first 16 MB are read: a
+// header longer than that is taken as it is.
 class ClassicHeader {
  public:
   explicit ClassicHeader(const std::string& path) : path_(path) {
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    file_bytes_ = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
+    in.seekg(0);
     bytes_.resize(kMostBytes);
     in.read(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
     bytes_.resize(static_cast<size_t>(in.gcount()));
@@ -45,7 +48,11 @@ class ClassicHeader {
     const uint64_t dims = list(kDimension, "dimension");
     for (uint64_t d = 0; d < dims && !stop_; ++d) {
       dimensions_.push_back(name("dimension"));
-      size();
+      // Nodes, elements and set members have data in the file, of at least a byte each: a longer
+      // dimension is damage, and the reader would allocate by it (num_elem = 5.9e8 asked for 4.7 GB).
+      if (const uint64_t length = size(); !stop_ && length > file_bytes_)
+        fail("dimension '" + excerpt(dimensions_.back(), 40) + "' has length " + std::to_string(length) +
+             ", more than the file's " + std::to_string(file_bytes_) + " bytes can hold");
     }
     attributes("global attribute");
     const uint64_t vars = list(kVariable, "variable");
@@ -190,6 +197,7 @@ class ClassicHeader {
   bool stop_ = false;  // the header runs past the bytes read
   int version_ = 0;
   size_t at_ = 0;
+  uint64_t file_bytes_ = 0;
   std::vector<std::string> dimensions_;  // by id
   std::set<std::string> variables_;
 };
