@@ -266,6 +266,47 @@ options: {num_modes: 4}
   EXPECT_EQ(p.truth_values()[0], 2.0e11);
 }
 
+// LoadOptions::synthesize = false (the problem fuzz target's cheap load): the section is read and
+// checked, its modes are not computed.
+TEST(LoadProblem, SyntheticSectionIsCheckedButNotSolvedWithoutSynthesize) {
+  const std::string text = kCube + R"(
+parameters:
+  E: {targets: [steel.E], initial: 1.0e11, lower: 1.0e10, upper: 1.0e12, truth: 2.0e11}
+sensors:
+  - {at: [1, 1, 1], directions: [x, y, z]}
+measured:
+  synthetic: {modes: [1, 2], shapes: true}
+)";
+  LoadOptions options;
+  options.synthesize = false;
+  const Problem p = load_problem(WriteProblem(text), options);
+  ASSERT_TRUE(p.synthetic);
+  EXPECT_EQ(p.synthetic->modes, (std::vector<int>{1, 2}));
+  EXPECT_TRUE(p.measured.empty());
+}
+
+// LoadOptions::memory_bytes stands for the machine's memory in the mesh-size check.
+TEST(LoadProblem, MemoryBytesLimitsTheMesh) {
+  const std::string path = WriteProblem(R"(
+mesh:
+  element_size: 0.05
+  boxes:
+    - {block: a, min: [0, 0, 0], max: [1, 1, 1]}
+blocks:
+  a: {E: 1, nu: 0.3, density: 1}
+)");
+  LoadOptions options;
+  options.memory_bytes = 1e7;  // 21^3 nodes need about 4e8 bytes by the estimate
+  try {
+    load_problem(path, options);
+    FAIL() << "expected a ProblemError";
+  } catch (const ProblemError& e) {
+    EXPECT_NE(std::string(e.what()).find("the memory allowed is"), std::string::npos) << e.what();
+  }
+  options.memory_bytes = 1e12;
+  EXPECT_EQ(load_problem(path, options).model.num_elements(), 20 * 20 * 20);
+}
+
 TEST(LoadProblem, KGBlockAndIdJointNodes) {
   const Problem p = load_problem(WriteProblem(R"(
 mesh:

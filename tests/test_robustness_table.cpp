@@ -416,7 +416,7 @@ std::vector<Row> Rows() {
       // --- mesh files ---
       {"gmsh-duplicate-node", "Gmsh file defining node 5 twice",
        {{"part.msh", OneHexMsh(Replace(kHexNodes, "6 1 0 1", "5 1 0 1"))}, {"part.yaml", OneHexProblem("part.msh")}},
-       "modes <dir>/part.yaml", 2, "a node id is defined twice (Skipping duplicate node 5)"},
+       "modes <dir>/part.yaml", 2, "a node id is defined twice (node 5, at lines"},
       {"gmsh-nan-coordinate", "Gmsh node with a NaN coordinate",
        {{"part.msh", OneHexMsh(Replace(kHexNodes, "2 1 0 0", "2 nan 0 0"))}, {"part.yaml", OneHexProblem("part.msh")}},
        "modes <dir>/part.yaml", 2, "node 2 has a coordinate that is not a finite number"},

@@ -177,6 +177,13 @@ struct LoadOptions {
   /// Sensors placed at a point, and a data file's sensors, take the nearest node however far it
   /// is: for a copy of a problem on a finer mesh, where the points may fall between nodes.
   bool nearest_sensor_nodes = false;
+  /// > 0: the memory (bytes) a mesh's estimated modal solve must fit in, instead of the machine's
+  /// physical memory; a larger mesh is refused like one too large for the machine (the fuzz
+  /// targets keep meshes small this way).
+  double memory_bytes = 0;
+  /// false: a `measured: synthetic:` section is read and checked, but its modes are not computed
+  /// (Problem::measured stays empty): for checking a file without its modal solve.
+  bool synthesize = true;
 };
 
 /// Reads and validates a problem file.

@@ -4,10 +4,13 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdint>
+#include <fstream>
+#include <set>
 
 #include <exodusII.h>
 
 #include "io/mesh_file_readers.hpp"
+#include "io/text_util.hpp"
 
 namespace modalcal::detail {
 
@@ -15,11 +18,196 @@ namespace {
 
 std::string quote(const std::string& s) { return "'" + s + "'"; }
 
+// The header of a netCDF classic file (the layouts CDF-1, CDF-2 and CDF-5, "The NetCDF Classic
+// Format Specification"), walked before the netCDF library reads it: netCDF 4.9 trusts the counts
+// it finds there and allocates and clears that much (a count off by a byte ran for minutes in
+// nc_get_NC). Every count must fit in the bytes left, every type be known and every dimension id
+// exist, no dimension be longer than the file, and the variables Exodus reads have the shapes it
+// sizes their buffers by; the variables' data is not looked at. Only the first 16 MB are read: a
+// header longer than that is taken as it is.
+class ClassicHeader {
+ public:
+  explicit ClassicHeader(const std::string& path) : path_(path) {
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    file_bytes_ = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
+    in.seekg(0);
+    bytes_.resize(kMostBytes);
+    in.read(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
+    bytes_.resize(static_cast<size_t>(in.gcount()));
+    whole_ = in.gcount() < static_cast<std::streamsize>(kMostBytes) || in.peek() == EOF;
+  }
+
+  /// Throws a ProblemError for a classic header that does not hold together; anything that is
+  /// not one (netCDF-4/HDF5, or no netCDF file at all) is left to the library.
+  void check() {
+    if (bytes_.size() < 4 || bytes_.compare(0, 3, "CDF") != 0) return;
+    version_ = bytes_[3];
+    if (version_ != 1 && version_ != 2 && version_ != 5) return;  // netCDF refuses it by itself
+    at_ = 4;
+    size();  // numrecs (or STREAMING)
+    const uint64_t dims = list(kDimension, "dimension");
+    for (uint64_t d = 0; d < dims && !stop_; ++d) {
+      dimensions_.push_back(name("dimension"));
+      // Nodes, elements and set members have data in the file, of at least a byte each: a longer
+      // dimension is damage, and the reader would allocate by it (num_elem = 5.9e8 asked for 4.7 GB).
+      if (const uint64_t length = size(); !stop_ && length > file_bytes_)
+        fail("dimension '" + excerpt(dimensions_.back(), 40) + "' has length " + std::to_string(length) +
+             ", more than the file's " + std::to_string(file_bytes_) + " bytes can hold");
+    }
+    attributes("global attribute");
+    const uint64_t vars = list(kVariable, "variable");
+    for (uint64_t v = 0; v < vars && !stop_; ++v) {
+      const std::string variable = name("variable");
+      std::vector<std::string> shape;
+      const uint64_t rank = count("variable dimensions", version_ == 5 ? 8 : 4);
+      for (uint64_t k = 0; k < rank && !stop_; ++k) {
+        const uint64_t id = size();
+        if (stop_) break;
+        if (id >= dims)
+          fail("a variable has dimension id " + std::to_string(id) + ", but the file has " + std::to_string(dims) +
+               " dimensions");
+        shape.push_back(dimensions_[static_cast<size_t>(id)]);
+      }
+      if (!stop_) check_shape(variable, shape);
+      attributes("variable attribute");
+      type();
+      size();                                   // vsize
+      take(version_ == 1 ? 4 : 8, "a variable's data offset");  // begin
+    }
+    if (stop_) return;
+    std::sort(dimensions_.begin(), dimensions_.end());
+    if (const auto twice = std::adjacent_find(dimensions_.begin(), dimensions_.end()); twice != dimensions_.end())
+      fail("two dimensions are named '" + excerpt(*twice, 60) + "'");
+  }
+
+ private:
+  static constexpr size_t kMostBytes = 16000000;
+  static constexpr uint32_t kDimension = 0x0A, kVariable = 0x0B, kAttribute = 0x0C;
+
+  [[noreturn]] void fail(const std::string& message) const {
+    mesh_error(path_, "its netCDF header is damaged (at byte " + std::to_string(at_) + "): " + message);
+  }
+
+  // n big-endian bytes; at the end of a cut-short buffer, stops the check instead.
+  uint64_t take(size_t n, const std::string& what) {
+    if (stop_) return 0;
+    if (bytes_.size() - at_ < n) {
+      if (!whole_) {
+        stop_ = true;
+        return 0;
+      }
+      fail("the file ends where " + what + " should be");
+    }
+    uint64_t v = 0;
+    for (size_t k = 0; k < n; ++k) v = (v << 8) | static_cast<unsigned char>(bytes_[at_ + k]);
+    at_ += n;
+    return v;
+  }
+  uint64_t size() { return take(version_ == 5 ? 8 : 4, "a size"); }
+  // A count of items of at least `least` bytes each, which must fit in the rest of the file.
+  uint64_t count(const std::string& what, uint64_t least) {
+    const uint64_t n = size();
+    if (!stop_ && whole_ && n > (bytes_.size() - at_) / least)
+      fail("it counts " + std::to_string(n) + " " + what + ", more than the " +
+           std::to_string(bytes_.size() - at_) + " bytes left can hold");
+    return n;
+  }
+  uint64_t list(uint32_t tag, const std::string& what) {
+    const uint64_t found = take(4, "the " + what + " list");
+    if (!stop_ && found != tag && found != 0) fail("expected the " + what + " list");
+    return count(what + "s", 8);
+  }
+  void skip(uint64_t n, const std::string& what) {
+    const uint64_t padded = (n + 3) / 4 * 4;
+    if (stop_) return;
+    if (padded > bytes_.size() - at_) {
+      if (!whole_) {
+        stop_ = true;
+        return;
+      }
+      fail("the file ends inside " + what);
+    }
+    at_ += static_cast<size_t>(padded);
+  }
+  std::string name(const std::string& what) {
+    const uint64_t n = count("characters of a " + what + " name", 1);
+    const size_t start = at_;
+    skip(n, "a " + what + " name");
+    return stop_ ? std::string() : bytes_.substr(start, static_cast<size_t>(n));
+  }
+
+  // The Exodus library reads these variables into buffers it sizes by the dimensions of these
+  // names, so a variable of another shape (or a second variable of the same name) would overrun
+  // them.
+  void check_shape(const std::string& variable, const std::vector<std::string>& shape) {
+    if (!variables_.insert(variable).second) fail("two variables are named '" + excerpt(variable, 60) + "'");
+    // The variable's name without a trailing number, and that number.
+    size_t digits = variable.size();
+    while (digits > 0 && std::isdigit(static_cast<unsigned char>(variable[digits - 1]))) --digits;
+    const std::string stem = variable.substr(0, digits), k = variable.substr(digits);
+    std::vector<std::string> expected;
+    if (variable == "coordx" || variable == "coordy" || variable == "coordz" || variable == "node_num_map")
+      expected = {"num_nodes"};
+    else if (variable == "coord")
+      expected = {"num_dim", "num_nodes"};
+    else if (variable == "elem_num_map")
+      expected = {"num_elem"};
+    else if (stem == "connect" && !k.empty())
+      expected = {"num_el_in_blk" + k, "num_nod_per_el" + k};
+    else if ((stem == "node_ns" || stem == "dist_fact_ns") && !k.empty())
+      expected = {"num_nod_ns" + k};
+    else if ((stem == "elem_ss" || stem == "side_ss") && !k.empty())
+      expected = {"num_side_ss" + k};
+    else if (variable == "eb_names" || variable == "ns_names" || variable == "ss_names")
+      expected = {variable == "eb_names" ? "num_el_blk" : variable == "ns_names" ? "num_node_sets" : "num_side_sets",
+                  "len_name"};
+    else if ((stem == "eb_prop" && !k.empty()) || variable == "eb_status")
+      expected = {"num_el_blk"};
+    else if ((stem == "ns_prop" && !k.empty()) || variable == "ns_status")
+      expected = {"num_node_sets"};
+    else if ((stem == "ss_prop" && !k.empty()) || variable == "ss_status")
+      expected = {"num_side_sets"};
+    else
+      return;
+    if (shape != expected) {
+      std::string found;
+      for (const std::string& d : shape) found += (found.empty() ? "" : ", ") + excerpt(d, 40);
+      fail("variable '" + excerpt(variable, 40) + "' has the dimensions (" + found + "); Exodus II gives it (" +
+           expected[0] + (expected.size() > 1 ? ", " + expected[1] : "") + ")");
+    }
+  }
+  uint64_t type() {
+    const uint64_t t = take(4, "a type");
+    static const int sizes[] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};
+    if (!stop_ && (t < 1 || t > (version_ == 5 ? 11u : 6u))) fail("unknown data type " + std::to_string(t));
+    return stop_ ? 1 : static_cast<uint64_t>(sizes[t]);
+  }
+  void attributes(const std::string& what) {
+    const uint64_t n = list(kAttribute, what);
+    for (uint64_t a = 0; a < n && !stop_; ++a) {
+      name(what);
+      const uint64_t bytes_per_value = type();
+      skip(count("values of a " + what, bytes_per_value) * bytes_per_value, "the values of a " + what);
+    }
+  }
+
+  std::string path_;
+  std::string bytes_;
+  bool whole_ = true;  // bytes_ is the whole file
+  bool stop_ = false;  // the header runs past the bytes read
+  int version_ = 0;
+  size_t at_ = 0;
+  uint64_t file_bytes_ = 0;
+  std::vector<std::string> dimensions_;  // by id
+  std::set<std::string> variables_;
+};
+
 class ExodusFile {
  public:
   explicit ExodusFile(const std::string& path) : path_(path) {
     int cpu_word_size = sizeof(double), io_word_size = 0;
     float version = 0;
+    ClassicHeader(path).check();
     id_ = ex_open(path.c_str(), EX_READ, &cpu_word_size, &io_word_size, &version);
     if (id_ < 0) fail("is not an Exodus II file, or the Exodus library cannot open it: " + last_error());
     ex_set_int64_status(id_, EX_ALL_INT64_API);

@@ -1,16 +1,21 @@
 // Gmsh .msh files through the Gmsh library's C++ API (gmsh.h): physical volume groups become
 // element blocks, physical surface, curve and point groups node sets.
 #include <algorithm>
+#include <charconv>
+#include <cstdlib>
 #include <fstream>
-#include <string>
-#include <vector>
 #include <map>
 #include <mutex>
+#include <sstream>
+#include <string>
 #include <unordered_map>
+#include <vector>
 
 #include <gmsh.h>
 
 #include "io/mesh_file_readers.hpp"
+#include "io/text_util.hpp"
+#include "modalcal/problem.hpp"
 
 namespace modalcal::detail {
 
@@ -84,6 +89,115 @@ bool ends_with_a_section(const std::string& path) {
   while (std::getline(in, line))
     if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
   return last.rfind("$End", 0) == 0;
+}
+
+// Nodes per element of each MSH 2 element type (Gmsh reference manual, "MSH file format version
+// 2 (legacy)"); 0 for a number that is no element type.
+int msh2_nodes_per_element(long type) {
+  static const std::map<long, int> nodes = {
+      {1, 2},   {2, 3},   {3, 4},   {4, 4},   {5, 8},   {6, 6},   {7, 5},   {8, 3},   {9, 6},   {10, 9},  {11, 10},
+      {12, 27}, {13, 18}, {14, 14}, {15, 1},  {16, 8},  {17, 20}, {18, 15}, {19, 13}, {20, 9},  {21, 10}, {22, 12},
+      {23, 15}, {24, 15}, {25, 21}, {26, 4},  {27, 5},  {28, 6},  {29, 20}, {30, 35}, {31, 56}, {92, 64}, {93, 125}};
+  const auto it = nodes.find(type);
+  return it == nodes.end() ? 0 : it->second;
+}
+
+// A number as Gmsh reads one with strtod (so "nan" and "inf" too, refused later by name).
+bool is_number(const std::string& token) {
+  char* end = nullptr;
+  std::strtod(token.c_str(), &end);
+  return !token.empty() && end == token.c_str() + token.size();
+}
+
+bool whole_numbers(const std::string& line, std::vector<long>* out) {
+  out->clear();
+  std::istringstream in(line);
+  std::string token;
+  while (in >> token) {
+    long v = 0;
+    const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+    if (ec != std::errc() || ptr != token.data() + token.size()) return false;
+    out->push_back(v);
+  }
+  return true;
+}
+
+// Gmsh 4.8's MSH 2 reader follows a null node, and crashes, for an element naming a node that
+// $Nodes does not define, or with fewer numbers than its type has nodes (it then takes the next
+// line's numbers for nodes). So an ASCII MSH 2 file has its $Nodes and $Elements lines checked
+// here first: a node line is a node number and three coordinates; an element line is whole
+// numbers: its number, an element type, the count of tags, the tags, and exactly as many nodes as
+// the type has, each defined above. Other versions and binary files go to Gmsh as they are.
+void check_msh2_ascii(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  int line_number = 0;
+  auto next = [&] {
+    if (!std::getline(in, line)) return false;
+    ++line_number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    return true;
+  };
+  auto fail = [&](const std::string& message) {
+    if (!ends_with_a_section(path))
+      throw ProblemError(path, line_number, "the file ends inside a section (its last line is no $End... line): it "
+                                            "is probably truncated");
+    throw ProblemError(path, line_number, message);
+  };
+  next();  // $MeshFormat, checked by require_msh_header
+  double version = 0;
+  int file_type = -1;
+  if (!next() || !(std::istringstream(line) >> version >> file_type) || version < 2 || version >= 3 || file_type != 0)
+    return;
+  std::unordered_map<long, int> defined;  // node number -> line
+  std::vector<long> numbers;
+  auto count_line = [&](const std::string& section) {
+    if (!next()) fail("the file ends after " + section + "; the count of its entries should follow");
+    if (!whole_numbers(line, &numbers) || numbers.size() != 1 || numbers[0] < 0)
+      fail(section + " should be followed by the count of its entries, found '" + excerpt(trim(line), 60) + "'");
+    return numbers[0];
+  };
+  while (next()) {
+    const std::string section = trim(line);
+    if (section == "$Nodes") {
+      const long count = count_line(section);
+      for (long k = 0; k < count; ++k) {
+        if (!next()) fail("the file ends inside $Nodes, after " + std::to_string(k) + " of its " +
+                          std::to_string(count) + " nodes");
+        std::istringstream fields(line);
+        std::string id_text, coordinate[3], extra;
+        if (!(fields >> id_text >> coordinate[0] >> coordinate[1] >> coordinate[2]) || (fields >> extra) ||
+            !whole_numbers(id_text, &numbers) || !is_number(coordinate[0]) || !is_number(coordinate[1]) ||
+            !is_number(coordinate[2]))
+          fail("a node line is a node number and three coordinates, found '" + excerpt(trim(line), 60) + "'");
+        if (const auto [it, is_new] = defined.emplace(numbers[0], line_number); !is_new)
+          fail("a node id is defined twice (node " + std::to_string(numbers[0]) + ", at lines " +
+               std::to_string(it->second) + " and " + std::to_string(line_number) + ")");
+      }
+    } else if (section == "$Elements") {
+      const long count = count_line(section);
+      for (long k = 0; k < count; ++k) {
+        if (!next()) fail("the file ends inside $Elements, after " + std::to_string(k) + " of its " +
+                          std::to_string(count) + " elements");
+        if (!whole_numbers(line, &numbers) || numbers.size() < 3 || numbers[2] < 0)
+          fail("an element line is whole numbers (number, type, count of tags, tags, nodes), found '" +
+               excerpt(trim(line), 60) + "'");
+        const long element = numbers[0], type = numbers[1], tags = numbers[2];
+        const int nodes = msh2_nodes_per_element(type);
+        if (nodes == 0) fail("element " + std::to_string(element) + " has type " + std::to_string(type) +
+                             ", which is no MSH 2 element type");
+        const long found = static_cast<long>(numbers.size()) - 3 - tags;  // tags >= 0: no overflow
+        if (found != nodes)
+          fail("element " + std::to_string(element) + " (type " + std::to_string(type) + ", " + std::to_string(tags) +
+               " tags) should have " + std::to_string(nodes) + " nodes after its tags, found " +
+               (found < 0 ? "fewer numbers than tags" : std::to_string(found)));
+        for (size_t i = 3 + static_cast<size_t>(tags); i < numbers.size(); ++i)
+          if (!defined.count(numbers[i]))
+            fail("element " + std::to_string(element) + " refers to node " + std::to_string(numbers[i]) +
+                 ", which $Nodes does not define");
+      }
+    }
+  }
 }
 
 // Gmsh's error in words that name the cause: its last error alone ("Wrong node index 6") hides
@@ -244,6 +358,7 @@ class GmshReader {
 
 RawMesh read_gmsh(const std::string& path) {
   require_msh_header(path);
+  check_msh2_ascii(path);
   GmshSession session;
   try {
     gmsh::open(path);

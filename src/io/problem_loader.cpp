@@ -634,11 +634,13 @@ void Loader::check_free_dofs() {
 // indices): such a run would otherwise grow for minutes and end killed, without a word.
 void Loader::check_mesh_size(double nodes, double extra_bytes, const Field& at, const std::string& remedy) const {
   constexpr double kMostNodes = 1e8;  // 3 DOFs each must index an int, with room to spare
-  const double dofs = 3 * nodes, bytes = estimated_solve_bytes(dofs) + extra_bytes, memory = physical_memory_bytes();
+  const double dofs = 3 * nodes, bytes = estimated_solve_bytes(dofs) + extra_bytes,
+               memory = options_.memory_bytes > 0 ? options_.memory_bytes : physical_memory_bytes();
   if (nodes <= kMostNodes && bytes <= memory) return;
   fail(at, "not enough memory for a mesh of about " + rounded(nodes) + " nodes (" + rounded(dofs) +
-               " DOFs): its modal solve needs an estimated " + rounded(bytes / 1e9) + " GB and this machine has " +
-               rounded(memory / 1e9) + " GB; " + remedy);
+               " DOFs): its modal solve needs an estimated " + rounded(bytes / 1e9) + " GB and " +
+           (options_.memory_bytes > 0 ? "the memory allowed is " : "this machine has ") +
+           rounded(memory / 1e9) + " GB; " + remedy);
 }
 
 void Loader::add_mesh_node(long id, const Vec3& x) {
@@ -1453,7 +1455,7 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
   problem.source_files.push_back(path);
   for (const auto& [base, base_path] : bases) problem.source_files.push_back(base_path);
   Loader(path, options, problem).load(root, bases);
-  if (problem.synthetic) detail::synthesize_measured(&problem, *problem.synthetic);
+  if (problem.synthetic && options.synthesize) detail::synthesize_measured(&problem, *problem.synthetic);
   return problem;
 }
 

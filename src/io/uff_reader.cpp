@@ -194,12 +194,15 @@ void UffReader::read_units(UffRecords& r, const UffBlock& b) {
   const std::string record1 = r.text("record 1 (units code, description, temperature mode)");
   std::vector<double> code;
   std::string bad;
-  if (!detail::parse_numbers(record1.substr(0, 10), &code, &bad) || code.size() != 1 || code[0] != std::floor(code[0]))
+  // Whole and within an int's range (10 columns hold more), to convert.
+  auto is_int = [](double v) { return v == std::floor(v) && std::abs(v) <= 2e9; };
+  if (!detail::parse_numbers(record1.substr(0, 10), &code, &bad) || code.size() != 1 || !is_int(code[0]))
     r.fail(line1, "record 1: expected the units code in columns 1-10, found '" + trim(record1.substr(0, 10)) + "'");
   u.code = static_cast<int>(code[0]);
   if (record1.size() > 10) u.description = trim(record1.substr(10, 20));
   std::vector<double> mode;
-  if (record1.size() > 30 && detail::parse_numbers(record1.substr(30), &mode, &bad) && mode.size() == 1)
+  if (record1.size() > 30 && detail::parse_numbers(record1.substr(30), &mode, &bad) && mode.size() == 1 &&
+      is_int(mode[0]))
     u.temperature_mode = static_cast<int>(mode[0]);
   const int line2 = r.line();
   const std::vector<double> factors = r.numbers(3, "record 2 (length, force and temperature factors)");
@@ -341,9 +344,9 @@ void UffReader::read_nodes(UffRecords& r, const UffBlock& b) {
     if (b.number == 15) {
       v = r.numbers(7, "node record (label, definition system, displacement system, color, x, y, z)");
       for (int k = 0; k < 4; ++k)
-        if (v[k] != std::floor(v[k]))
+        if (v[k] != std::floor(v[k]) || std::abs(v[k]) > 2e9)  // as whole_numbers(): it must convert to an int
           r.fail(node.line, "node record: field " + std::to_string(k + 1) + " (" + number_text(v[k]) +
-                                ") should be a whole number");
+                                ") should be a whole number of at most 2e9");
     } else {
       v = r.whole_numbers(4, "record 1 (node label, export system, displacement system, color)");
       const std::vector<double> x = r.numbers(3, "record 2 (coordinates)");
@@ -436,7 +439,8 @@ std::string UffReader::read_dataset_55(UffRecords& r, const UffBlock& b) {
   if (std::string reason = skip_reason(r, kind_line, kind); !reason.empty()) return reason;
   const int ints_line = r.line();
   const std::vector<double> first = r.peek("record 7");
-  if (first.size() < 2 || first[0] < 2 || first[0] != std::floor(first[0]))
+  // At most 1e6 integers: more than any dataset has, and the count must convert to an int.
+  if (first.size() < 2 || first[0] < 2 || first[0] > 1e6 || first[0] != std::floor(first[0]))
     r.fail(ints_line,
            "record 7 must start with the number of integer values (at least 2: load case, mode number) and of real "
            "values");

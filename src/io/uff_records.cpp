@@ -59,9 +59,11 @@ bool binary_58_header(const std::string& line, long* ascii_lines, long* bytes) {
   std::vector<double> fields;
   std::string bad;
   if (!parse_numbers(t.substr(3), &fields, &bad) || fields.size() < 4) return false;
+  // In range before the conversion: a double beyond a long's range converts to nothing defined.
+  if (!(fields[2] >= 0 && fields[3] >= 0 && fields[2] < 1e6 && fields[3] < 1e12)) return false;
   *ascii_lines = static_cast<long>(fields[2]);
   *bytes = static_cast<long>(fields[3]);
-  return fields[2] >= 0 && fields[3] >= 0 && fields[2] < 1e6 && fields[3] < 1e12;
+  return true;
 }
 
 }  // namespace
