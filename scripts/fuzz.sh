@@ -14,17 +14,7 @@ cd "$(dirname "$0")/.."
 target=${1:-all}
 runs=${2:-1000000}
 
-bash scripts/install-deps.sh
-missing=()
-for p in clang libclang-rt-dev llvm; do
-  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "installing: ${missing[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq --no-install-recommends "${missing[@]}"
-fi
+bash scripts/install-deps.sh clang libclang-rt-dev llvm
 
 all_targets=$(grep '^[a-z]' fuzz/targets.txt | cut -d' ' -f1)
 if [ "$target" = all ]; then

@@ -16,6 +16,7 @@ packages=(
   libgtest-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev gnuplot-nox python3-vtk9 python3-numpy
   libgmsh-dev gmsh libexodusii-dev
 )
+packages+=("$@")  # what a caller needs beside them (scripts/fuzz.sh: clang and its fuzzer runtime)
 if [ "${MODALCAL_WITH_ROL:-0}" = 1 ]; then
   packages+=(libtrilinos-rol-dev libtrilinos-teuchos-dev libtrilinos-kokkos-dev)
 fi
