@@ -304,12 +304,10 @@ int scale_part_of_block(Model* model, const std::string& block, const Vec3& cent
   if (it == model->blocks.end()) throw std::invalid_argument("no block " + block);
   ElementBlock& b = *it;
   const int npe = nodes_per_element(b.type);
+  const std::vector<Vec3> centroids = element_centroids(*model, b);
   std::vector<int> inside, outside;
   for (int e = 0; e < b.num_elements(); ++e) {
-    Vec3 c = Vec3::Zero();
-    for (int k = 0; k < npe; ++k) c += model->coordinates[b.connectivity[e * npe + k]];
-    c /= npe;
-    std::vector<int>& to = (c - center).norm() <= radius ? inside : outside;
+    std::vector<int>& to = (centroids[e] - center).norm() <= radius ? inside : outside;
     to.insert(to.end(), b.connectivity.begin() + e * npe, b.connectivity.begin() + (e + 1) * npe);
   }
   *total = b.num_elements();
@@ -607,15 +605,10 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
   }
   // Part of a block: the elements whose centroids lie within a radius of one of its nodes, the
   // radius taking a drawn share (5-30 %) of the block's elements, at least one, never all.
-  const int npe = nodes_per_element(block.type);
   const int v = block.connectivity[draw.index(static_cast<int>(block.connectivity.size()))];
   e.region_center = model.coordinates[v];
   std::vector<double> distances;
-  for (int el = 0; el < block.num_elements(); ++el) {
-    Vec3 c = Vec3::Zero();
-    for (int k = 0; k < npe; ++k) c += model.coordinates[block.connectivity[el * npe + k]];
-    distances.push_back((c / npe - e.region_center).norm());
-  }
+  for (const Vec3& c : element_centroids(model, block)) distances.push_back((c - e.region_center).norm());
   std::sort(distances.begin(), distances.end());
   const int n = static_cast<int>(distances.size());
   const int take = std::clamp(static_cast<int>(std::lround(draw.u(0.05, 0.30) * n)), 1, n - 1);

@@ -20,4 +20,8 @@ struct BlockGeometry {
 /// density summed over all entries, divided by 3 (sum of N^T N over the three directions).
 BlockGeometry block_geometry(const Model& model);
 
+/// The centroid (mean of its nodes) of every element of `block`, in element order: what regions
+/// and generated parts of a block are chosen by.
+std::vector<Vec3> element_centroids(const Model& model, const ElementBlock& block);
+
 }  // namespace modalcal

@@ -399,14 +399,9 @@ class CandidateFactory {
   /// no centroid of another cube lies in it); none when one cube holds the whole block.
   std::vector<std::string> region_places(int b) const {
     const ElementBlock& block = model_.blocks[b];
-    const int npe = nodes_per_element(block.type), ne = block.num_elements();
-    std::vector<Vec3> centroids(ne, Vec3::Zero());
+    const std::vector<Vec3> centroids = element_centroids(model_, block);
     Vec3 lowest = Vec3::Constant(std::numeric_limits<double>::infinity());
-    for (int e = 0; e < ne; ++e) {
-      for (int k = 0; k < npe; ++k) centroids[e] += model_.coordinates[block.connectivity[e * npe + k]];
-      centroids[e] /= npe;
-      lowest = lowest.cwiseMin(centroids[e]);
-    }
+    for (const Vec3& c : centroids) lowest = lowest.cwiseMin(c);
     const double h = scales_.block_size(b), cell = options_.region_elements * h;
     lowest.array() -= 0.5 * h;  // about the block's lowest corner: cube faces between centroids
     std::map<std::array<long, 3>, std::pair<Vec3, Vec3>> boxes;  // cube -> bounds of its centroids

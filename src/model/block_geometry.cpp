@@ -31,4 +31,14 @@ BlockGeometry block_geometry(const Model& model) {
   return g;
 }
 
+std::vector<Vec3> element_centroids(const Model& model, const ElementBlock& block) {
+  const int npe = nodes_per_element(block.type);
+  std::vector<Vec3> centroids(block.num_elements(), Vec3::Zero());
+  for (int e = 0; e < block.num_elements(); ++e) {
+    for (int k = 0; k < npe; ++k) centroids[e] += model.coordinates[block.connectivity[e * npe + k]];
+    centroids[e] /= npe;
+  }
+  return centroids;
+}
+
 }  // namespace modalcal

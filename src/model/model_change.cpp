@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "io/text_util.hpp"
+#include "modalcal/block_geometry.hpp"
 
 namespace modalcal {
 
@@ -513,14 +514,12 @@ std::string name_tag(double x) {
 
 /// The elements of `block` whose centroid lies in the box [lo, hi] (a relative 1e-9 of slack).
 std::vector<int> elements_in_box(const Model& model, const ElementBlock& block, const Vec3& lo, const Vec3& hi) {
-  const int npe = nodes_per_element(block.type);
   const double slack = 1e-9 * ((hi - lo).norm() + std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()));
+  const std::vector<Vec3> centroids = element_centroids(model, block);
   std::vector<int> elements;
-  for (int e = 0; e < block.num_elements(); ++e) {
-    Vec3 c = Vec3::Zero();
-    for (int k = 0; k < npe; ++k) c += model.coordinates[block.connectivity[e * npe + k]];
-    c /= npe;
-    if (((c - lo).array() >= -slack).all() && ((hi - c).array() >= -slack).all()) elements.push_back(e);
+  for (size_t e = 0; e < centroids.size(); ++e) {
+    const Vec3& c = centroids[e];
+    if (((c - lo).array() >= -slack).all() && ((hi - c).array() >= -slack).all()) elements.push_back(static_cast<int>(e));
   }
   return elements;
 }
