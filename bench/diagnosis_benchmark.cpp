@@ -833,6 +833,8 @@ struct Args {
   bool dry_run = false;
   std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
+  int refits = RankingOptions().refits;
+  bool equal_kind_prior = RankingOptions().equal_kind_prior;
   double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
   std::string command;
 };
@@ -842,7 +844,8 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
-      "                    [--mesh-check R]\n"
+      "                    [--mesh-check R] [--refits N] [--no-kind-prior]\n"
+      "  --refits, --no-kind-prior: RankingOptions::refits and equal_kind_prior (defaults: diagnose's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
@@ -893,6 +896,8 @@ int main(int argc, char** argv) {
       else if (a == "--json") args.json_path = next();
       else if (a == "--significance") args.significance = std::stod(next());
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
+      else if (a == "--refits") args.refits = std::stoi(next());
+      else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
       else if (a == "--min-shift") args.draw.min_shift = std::stod(next());
@@ -928,9 +933,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions defaults (refits %d, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              RankingOptions().refits, args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
+              args.refits, args.equal_kind_prior ? "" : ", no kind prior", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
               "true parameters against noise-free truth data, J its Jacobian in the parameters (what calibration absorbs, "
@@ -1016,6 +1021,8 @@ int main(int argc, char** argv) {
         if (!args.dry_run) {
           DiagnosisOptions options;
           options.ranking.significance = args.significance;
+          options.ranking.refits = args.refits;
+          options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();

@@ -275,13 +275,25 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   EXPECT_NEAR(best.delta_bic, best.achieved_reduction - std::log(ranking.num_data), 1e-9);
   // The first-order prediction is of the right size (the effect is not small, so not exact).
   EXPECT_NEAR(best.predicted_reduction / best.achieved_reduction, 1, 0.3);
-  // Refitted ones come first, by what they achieved; the rest by prediction.
+  // Refitted ones come first, the significant ones before the others, each by score (the
+  // reduction less 2 ln of how many candidates of its kind were screened); the rest by prediction.
   for (size_t k = 1; k < ranking.effects.size(); ++k) {
     const RankedEffect &a = ranking.effects[k - 1], &b = ranking.effects[k];
-    if (a.refitted && b.refitted) EXPECT_GE(a.achieved_reduction, b.achieved_reduction);
+    if (a.refitted && b.refitted && a.significant == b.significant) EXPECT_GE(a.score(), b.score());
+    if (a.refitted && b.refitted) EXPECT_GE(a.significant, b.significant);
     if (!a.refitted) EXPECT_FALSE(b.refitted);
     if (!a.refitted) EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
   }
+  const auto of_kind = [&](const RankedEffect& r) {
+    return std::count_if(ranking.effects.begin(), ranking.effects.end(), [&](const RankedEffect& o) {
+      return o.candidate.change.kind == r.candidate.change.kind && o.candidate.change.property == r.candidate.change.property;
+    });
+  };
+  for (const RankedEffect& r : ranking.effects) {
+    EXPECT_EQ(r.kind_size, of_kind(r)) << r.candidate.name;
+    EXPECT_NEAR(r.kind_penalty, 2 * std::log(r.kind_size), 1e-12) << r.candidate.name;
+  }
+  EXPECT_EQ(best.kind_size, 1);  // j is the only joint: its krx is a kind of one, with no penalty
   EXPECT_EQ(std::count_if(ranking.effects.begin(), ranking.effects.end(), [](const auto& r) { return r.refitted; }),
             RankingOptions().refits);
   EXPECT_NE(format_effect_ranking(ranking).find("j.krx"), std::string::npos);
@@ -360,6 +372,13 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
       EXPECT_FALSE(s.location);
     }
   }
+  // A step's alternatives are the other significant refits that score almost as well.
+  for (const DiagnosisStep& s : d.steps)
+    for (const RankedEffect& a : s.alternatives) {
+      EXPECT_TRUE(a.refitted && a.significant) << a.candidate.name;
+      EXPECT_LE(a.score(), s.effect.score()) << a.candidate.name;
+      EXPECT_GT(a.score(), s.effect.score() - DiagnosisStep::kAlternativeMargin) << a.candidate.name;
+    }
   // Both values near the truth at the end (the final refit has every effect free).
   const Problem with = problem_with_diagnosed_effects(hidden, d);
   EXPECT_NEAR(d.final_parameters[with.find_parameter("j.krx")], 20, 3) << report;

@@ -93,6 +93,11 @@ struct DiagnosisStep {
   int screened = 0;             ///< candidates screened in the step
   double critical_value = 0;    ///< of the step's likelihood-ratio test
   std::optional<Vec3> location;  ///< effect_location(); none for a block-wide effect
+  /// The step's other significant refits whose score S (effects.hpp, "Which effect") is within
+  /// DiagnosisStep::kAlternativeMargin of the accepted one's: effects these data hardly tell
+  /// from it (posterior odds below about 20 to 1).
+  std::vector<RankedEffect> alternatives;
+  static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
 };
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated

@@ -55,6 +55,19 @@
 /// weights stand in and significance uses the residual of the refit as the noise estimate
 /// (an F-test).
 ///
+/// **Which effect.** Significance says that something is missing; which candidate is named is a
+/// second question. Among the significant refits the ranking puts first the largest
+/// \f[ S = \Delta X^2 - 2 \ln n_{kind}, \f]
+/// \f$n_{kind}\f$ the number of candidates of its kind screened (a kind: the change's kind and
+/// property, e.g. "an added point mass" or "a block's stiffness scale"; a declared candidate is a
+/// kind of its own). S is twice the log posterior odds of the candidate against "no effect" when
+/// every kind is a priori equally likely and a kind's members share its prior (up to a constant
+/// common to all): a point mass at one of 2,000 nodes must fit better by \f$2\ln(2000/4) \approx 12\f$
+/// than a scale of one of 4 blocks to be preferred, since one of 2,000 places fits well by chance
+/// more easily. Effects the data do not tell apart (the same fit to within the noise) are thus
+/// named by the simpler hypothesis; the refits' order of choice uses the same penalty on the
+/// predictions (after the best prediction itself).
+///
 /// \code
 /// modalcal::Problem weighted = modalcal::noise_weighted(problem, *problem.measurement_noise);
 /// std::vector<modalcal::EffectCandidate> candidates = modalcal::generate_candidates(weighted);
@@ -163,6 +176,9 @@ std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& c
 struct RankingOptions {
   /// How many of the best-predicted candidates are refitted. Range: >= 0.
   int refits = 3;
+  /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
+  /// by ΔX² alone (every candidate equally likely a priori).
+  bool equal_kind_prior = true;
   /// Significance level of the likelihood-ratio test, before the Bonferroni division by the
   /// number of candidates screened. Range: (0, 0.5).
   double significance = 0.01;
@@ -194,6 +210,10 @@ struct RankedEffect {
   bool model_form_error_after = false;  ///< the residual test still fails with the effect
   double delta_bic = NAN;               ///< \f$\Delta X^2 - \ln n\f$
   double delta_aic = NAN;               ///< \f$\Delta X^2 - 2\f$
+  int kind_size = 1;        ///< \f$n_{kind}\f$: candidates of its kind screened (1 if declared)
+  double kind_penalty = 0;  ///< \f$2 \ln n_{kind}\f$ (0 without RankingOptions::equal_kind_prior)
+  /// S = ΔX² − kind_penalty after a refit, the predicted ΔX² − kind_penalty before.
+  double score() const { return (refitted ? achieved_reduction : predicted_reduction) - kind_penalty; }
   /// One standard deviation of the identified value, \f$\sqrt{((J^T J)^{-1})_{\theta\theta}}\f$ with
   /// the noise-weighted Jacobian at the refit (the first-ranked effect only; NaN otherwise or
   /// without a stated noise).
@@ -208,7 +228,8 @@ struct RankedEffect {
 };
 
 struct EffectRanking {
-  /// Refitted candidates by achieved reduction, then the others by predicted reduction.
+  /// Refitted candidates, the significant ones first, each group by score() (S, "Which effect"
+  /// above); then the others by predicted reduction.
   std::vector<RankedEffect> effects;
   double chi2_before = 0;  ///< \f$X^2\f$ at the calibrated point (or 2J without noise)
   int dof_before = 0;

@@ -129,6 +129,16 @@ nlohmann::json location_json(const std::optional<Vec3>& location) {
   return {(*location)[0], (*location)[1], (*location)[2]};
 }
 
+nlohmann::json alternatives_json(const std::vector<RankedEffect>& alternatives) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const RankedEffect& a : alternatives)
+    list.push_back({{"name", a.candidate.name},
+                    {"value", json_number(a.value)},
+                    {"chi2_after", json_number(a.chi2_after)},
+                    {"score", json_number(a.score())}});
+  return list;
+}
+
 nlohmann::json step_json(const DiagnosisStep& s) {
   const RankedEffect& e = s.effect;
   return {{"step", s.step},
@@ -142,8 +152,10 @@ nlohmann::json step_json(const DiagnosisStep& s) {
           {"chi2_after", json_number(e.chi2_after)},
           {"p_value_after", json_number(e.p_value_after)},
           {"delta_bic", json_number(e.delta_bic)},
+          {"score", json_number(e.score())},
           {"critical_value", s.critical_value},
-          {"screened", s.screened}};
+          {"screened", s.screened},
+          {"alternatives", alternatives_json(s.alternatives)}};
 }
 
 nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
@@ -197,6 +209,8 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                                {"value", json_number(r.refitted ? r.value : r.predicted_value)},
                                {"chi2_after", json_number(r.chi2_after)},
                                {"delta_bic", json_number(r.delta_bic)},
+                               {"kind_size", r.kind_size},
+                               {"score", json_number(r.refitted ? r.score() : NAN)},
                                {"significant", r.significant}});
   }
   json["set_aside"] = nlohmann::json::array();

@@ -208,6 +208,11 @@ bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOption
   step.screened = ranking.screened;
   step.critical_value = ranking.critical_value;
   step.location = effect_location(state->problem.model, best.candidate);
+  for (size_t k = 1; k < ranking.effects.size(); ++k) {
+    const RankedEffect& other = ranking.effects[k];
+    if (other.refitted && other.significant && other.score() > best.score() - DiagnosisStep::kAlternativeMargin)
+      step.alternatives.push_back(other);
+  }
   d->steps.push_back(step);
   std::vector<EffectCandidate> effects = state->effects;
   effects.push_back(best.candidate);
@@ -512,6 +517,11 @@ std::string format_steps(const Diagnosis& d) {
                   where.c_str(), s.chi2_before, s.effect.chi2_after, s.effect.achieved_reduction, s.critical_value,
                   s.screened);
     text += line;
+    for (const RankedEffect& a : s.alternatives) {
+      std::snprintf(line, sizeof line, "            the data hardly tell it from %s = %.4g (%.4g -> %.4g)\n",
+                    a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
+      text += line;
+    }
   }
   for (const DroppedEffect& x : d.dropped) {
     std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n", x.name.c_str(),

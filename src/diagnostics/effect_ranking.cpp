@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
+#include <numeric>
 #include <stdexcept>
 
 #include "modalcal/effects.hpp"
@@ -101,14 +103,39 @@ bool neighbours(const EffectCandidate& a, const EffectCandidate& b) {
   return (*a.location - *b.location).norm() < std::max(a.neighbourhood, b.neighbourhood);
 }
 
-/// The `refits` best predictions, at most one of each group of neighbours (the best of it), in
-/// `screened`'s order of prediction.
+/// A candidate's kind for the prior of effects.hpp ("Which effect"): its change's kind and
+/// property; a declared candidate is a kind of its own.
+std::string kind_of(const EffectCandidate& c) {
+  if (c.declared) return "declared " + c.name;
+  return std::to_string(static_cast<int>(c.change.kind)) + " " + c.change.property;
+}
+
+/// Sets every screened candidate's kind size and penalty.
+void set_kind_penalties(std::vector<RankedEffect>* screened, bool equal_kind_prior) {
+  std::map<std::string, int> sizes;
+  for (const RankedEffect& r : *screened) ++sizes[kind_of(r.candidate)];
+  for (RankedEffect& r : *screened) {
+    r.kind_size = sizes[kind_of(r.candidate)];
+    r.kind_penalty = equal_kind_prior ? 2 * std::log(static_cast<double>(r.kind_size)) : 0.0;
+  }
+}
+
+/// The `refits` candidates to refit from `screened` (in order of prediction): the best
+/// prediction, then by predicted score (prediction less the kind's penalty), at most one of each
+/// group of neighbours (the best of it).
 std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int refits) {
+  std::vector<size_t> order(screened.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  if (!order.empty())
+    std::stable_sort(order.begin() + 1, order.end(),
+                     [&](size_t a, size_t b) { return screened[a].score() > screened[b].score(); });
   std::vector<size_t> chosen;
-  for (size_t k = 0; k < screened.size() && static_cast<int>(chosen.size()) < refits; ++k)
+  for (size_t k : order) {
+    if (static_cast<int>(chosen.size()) >= refits) break;
     if (std::none_of(chosen.begin(), chosen.end(),
                      [&](size_t c) { return neighbours(screened[c].candidate, screened[k].candidate); }))
       chosen.push_back(k);
+  }
   return chosen;
 }
 
@@ -303,6 +330,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     screened.push_back(ranked);
   }
   ranking.screened = static_cast<int>(screened.size());
+  set_kind_penalties(&screened, options.equal_kind_prior);
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
     return a.predicted_reduction > b.predicted_reduction;
   });
@@ -343,10 +371,13 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
     ranked.delta_aic = statistic - 2;
   }
-  // Refitted first by what they achieved, then the rest by prediction.
+  // Refitted first, the significant ones before the others, each by score; then the rest by
+  // prediction.
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
     if (a.refitted != b.refitted) return a.refitted;
-    return a.refitted ? a.achieved_reduction > b.achieved_reduction : false;
+    if (!a.refitted) return false;
+    if (a.significant != b.significant) return a.significant;
+    return a.score() > b.score();
   });
   if (!screened.empty() && screened.front().refitted && ranking.noise_known) {
     // Covariance of a noise-weighted least-squares estimate: (J^T J)^-1.
