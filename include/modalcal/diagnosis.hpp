@@ -118,7 +118,8 @@ struct DiscretizationEstimate {
   double refinement = 0;  ///< r, the element-size ratio of the two meshes
   int dofs = 0, finer_dofs = 0;
   std::vector<Mode> per_mode;
-  /// X^2 at the calibration minus X^2 of the recalibration on the moved data.
+  /// X^2 at the calibration minus X^2 of the recalibration on the moved data. Negative when the
+  /// finer mesh moves the model away from the data (the misfit is not the mesh's).
   double chi2_explained = 0;
   double critical_value = 0;  ///< chi-square(1) at the significance level
   bool significant = false;   ///< chi2_explained above it: refine the mesh first

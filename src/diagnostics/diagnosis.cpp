@@ -485,6 +485,13 @@ std::string format_discretization(const DiscretizationEstimate& est) {
                   m.extrapolated_percent);
     text += line;
   }
+  if (est.chi2_explained < 0) {
+    // The finer mesh moves the model away from the data: what misfits is not the mesh.
+    std::snprintf(line, sizeof line,
+                  "  explains none of the chi-square: the data corrected for it fit worse (by %.4g)\n",
+                  -est.chi2_explained);
+    return text + line;
+  }
   std::snprintf(line, sizeof line, "  explains %.4g of the chi-square (%s %.3g)%s\n", est.chi2_explained,
                 est.significant ? "more than" : "not more than", est.critical_value,
                 est.corrected ? "; the diagnosis below is of the data corrected for it" : "");
