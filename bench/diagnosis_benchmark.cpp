@@ -812,6 +812,7 @@ struct Outcome {
   json accepted_locations = json::array();
   int steps = 0, dropped = 0;
   bool first_right = false, all_found = false;
+  bool named_right = false;  // the first step's effect or one of its alternatives is a truth effect
   int spurious = 0;  // kept effects that match no truth effect
   double p_before = NAN, p_final = NAN, chi2_before = NAN, chi2_final = NAN;
   double value_error = NAN;
@@ -835,6 +836,7 @@ struct Args {
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
+  bool print_diagnosis = false;
   double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
   std::string command;
 };
@@ -844,8 +846,9 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
-      "                    [--mesh-check R] [--refits N] [--no-kind-prior]\n"
+      "                    [--mesh-check R] [--refits N] [--no-kind-prior] [--print-diagnosis]\n"
       "  --refits, --no-kind-prior: RankingOptions::refits and equal_kind_prior (defaults: diagnose's);\n"
+      "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
@@ -868,7 +871,7 @@ double median(std::vector<double> v) {
 }
 
 struct Row {
-  int n = 0, detectable = 0, flagged_detectable = 0, flagged_all = 0, right = 0, all_found = 0, multi_detectable = 0,
+  int n = 0, detectable = 0, flagged_detectable = 0, flagged_all = 0, right = 0, named = 0, all_found = 0, multi_detectable = 0,
       consistent = 0, any_accepted = 0, errors = 0, consistent_all = 0;
   std::vector<double> p_final, p_all, value_errors, wall, cpu;
 };
@@ -898,6 +901,7 @@ int main(int argc, char** argv) {
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
+      else if (a == "--print-diagnosis") args.print_diagnosis = true;
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
       else if (a == "--min-shift") args.draw.min_shift = std::stod(next());
@@ -1070,6 +1074,16 @@ int main(int argc, char** argv) {
             if (!matched) ++o.spurious;
           }
           o.all_found = !c.effects.empty() && std::all_of(found.begin(), found.end(), [](bool b) { return b; });
+          if (!d.steps.empty()) {
+            std::vector<const RankedEffect*> named = {&d.steps[0].effect};
+            for (const RankedEffect& alt : d.steps[0].alternatives) named.push_back(&alt);
+            for (const RankedEffect* r : named)
+              for (const EffectSpec& e : c.effects) {
+                const double h2 = 2 * (e.location ? element_size_at(ctx, *e.location) : 0);
+                if (kinds_match(e, r->candidate, effect_location(problem.model, r->candidate), h2)) o.named_right = true;
+              }
+          }
+          if (args.print_diagnosis) std::fprintf(stderr, "=== case %d\n%s\n", k, format_diagnosis(problem, d).c_str());
           for (const DiagnosisStep& s : d.steps) {
             json sj;
             sj["effect"] = s.effect.candidate.name;
@@ -1130,6 +1144,7 @@ int main(int argc, char** argv) {
         cj["accepted_locations"] = o.accepted_locations;
         cj["steps"] = o.steps_json;
         cj["first_right_kind_and_place"] = o.first_right;
+        cj["right_among_named"] = o.named_right;
         cj["all_found"] = o.all_found;
         cj["spurious"] = o.spurious;
         cj["p_before"] = o.p_before;
@@ -1164,6 +1179,7 @@ int main(int argc, char** argv) {
           ++r.detectable;
           if (o.flagged) ++r.flagged_detectable;
           if (o.first_right) ++r.right;
+          if (o.named_right) ++r.named;
           if (c.effects.size() > 1) {
             ++r.multi_detectable;
             if (o.all_found) ++r.all_found;
@@ -1191,12 +1207,12 @@ int main(int argc, char** argv) {
   if (args.dry_run) return 0;
   const double a = args.significance;
   std::printf("\n## per category (all problems)\n");
-  std::printf("%-34s %4s %6s %-14s %-14s %-14s %-14s %8s %-14s %9s %8s %8s %4s\n", "category", "n", "detect", "flagged",
-              "right kind+place", "every effect", "any accepted", "med p", "p > alpha", "med |err|", "wall s", "cpu s", "err");
+  std::printf("%-34s %4s %6s %-14s %-14s %-14s %-14s %-14s %8s %-14s %9s %8s %8s %4s\n", "category", "n", "detect", "flagged",
+              "right kind+place", "right named", "every effect", "any accepted", "med p", "p > alpha", "med |err|", "wall s", "cpu s", "err");
   auto print_row = [&](const std::string& name, const Row& r, bool effects) {
-    std::printf("%-34s %4d %6d %-14s %-14s %-14s %-14s %8s %-14s %9s %8.1f %8.1f %4d\n", name.c_str(), r.n, r.detectable,
+    std::printf("%-34s %4d %6d %-14s %-14s %-14s %-14s %-14s %8s %-14s %9s %8.1f %8.1f %4d\n", name.c_str(), r.n, r.detectable,
                 effects ? pct(r.flagged_detectable, r.detectable).c_str() : pct(r.flagged_all, r.n - r.errors).c_str(),
-                effects ? pct(r.right, r.detectable).c_str() : "-",
+                effects ? pct(r.right, r.detectable).c_str() : "-", effects ? pct(r.named, r.detectable).c_str() : "-",
                 r.multi_detectable ? pct(r.all_found, r.multi_detectable).c_str() : "-",
                 pct(r.any_accepted, r.n - r.errors).c_str(), json_number(median(effects ? r.p_final : r.p_all)).c_str(),
                 effects ? pct(r.consistent, r.detectable).c_str() : pct(r.consistent_all, r.n - r.errors).c_str(), json_number(median(r.value_errors)).c_str(),
@@ -1209,6 +1225,8 @@ int main(int argc, char** argv) {
   std::printf("\n## single effects by family\n");
   for (const auto& [key, r] : family_rows) print_row(key, r, true);
   std::printf("(flagged: of the detectable cases, or for controls of all; right kind+place: the first kept accepted effect; "
+              "right named: the first step's effect or one of the alternatives it lists (effects the data hardly tell "
+              "from it) has the right kind and place; "
               "med |err|: median relative error of the accepted value's change from nominal; wall/cpu: median per "
               "diagnosis)\n");
 

@@ -130,6 +130,7 @@ struct Settings {
   double start_factor = 0.7;
   double target_error = 1e-8;
   int reduced_max_iterations = 1000;
+  double globalization_reduction = FullSpaceOptions().globalization_reduction;
   int ipopt_print_level = 0;
   double max_seconds = 900;
   double max_memory_mb = 0;
@@ -213,6 +214,7 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     r.final_objective = summary.final_objective;
   } else {
     FullSpaceOptions o;
+    o.globalization_reduction = s.globalization_reduction;
     o.print_level = s.ipopt_print_level;
     if (method == Method::FullSpaceBlock) o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
     if (method == Method::FullSpaceMumps) o.kkt_solver = FullSpaceOptions::KktSolver::Mumps;
@@ -401,6 +403,7 @@ const char* kUsage =
     "  --target-error E            parameter error for the time-to-accuracy column (default 1e-8)\n"
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
     "  --ipopt-print-level N       FullSpaceOptions::print_level (default 0, silent)\n"
+    "  --globalization-reduction R FullSpaceOptions::globalization_reduction (default: its default)\n"
     "  --max-seconds S             per case; the child is killed after it (default 900)\n"
     "  --max-memory-mb M           per case resident-memory limit (default 60 % of RAM; 0 none)\n"
     "  --json OUT                  also write the results as JSON\n";
@@ -443,6 +446,7 @@ int run(int argc, char** argv) {
     } else if (a == "--start-factor") s.start_factor = number();
     else if (a == "--target-error") s.target_error = number();
     else if (a == "--reduced-max-iterations") s.reduced_max_iterations = static_cast<int>(number());
+    else if (a == "--globalization-reduction") s.globalization_reduction = number();
     else if (a == "--ipopt-print-level") s.ipopt_print_level = static_cast<int>(number());
     else if (a == "--max-seconds") s.max_seconds = number();
     else if (a == "--max-memory-mb") s.max_memory_mb = number();

@@ -72,6 +72,10 @@ struct ResidualTest {
 ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
                            int num_parameters, const ResidualTestOptions& options = {});
 
+/// The number of data n the residual holds: one per weighted frequency, s − 1 per weighted shape
+/// of s values (a shape's scale is not a datum).
+int count_data(const Problem& problem, const Evaluation& evaluation);
+
 /// A copy of `problem` whose objective weights make twice its misfit the statistic \f$X^2\f$ above
 /// (to first order), so that calibrating it is a maximum-likelihood fit under `noise`, as the
 /// likelihood-ratio tests of the effect ranking (effects.hpp) assume:

@@ -80,11 +80,7 @@ Misfit misfit_of(const Objective& objective, const Evaluation& e, int num_parame
     return m;
   }
   m.statistic = e.residuals.squaredNorm();
-  for (const PairedMode& pair : e.pairs) {
-    const MeasuredMode& measured = problem.measured[pair.measured];
-    if (measured.weight > 0) m.data += 1;
-    if (measured.has_shape_term() && measured.shape.size() > 1) m.data += static_cast<int>(measured.shape.size()) - 1;
-  }
+  m.data = count_data(problem, e);
   m.dof = std::max(1, m.data - num_parameters);
   return m;
 }

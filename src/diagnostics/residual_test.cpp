@@ -88,6 +88,16 @@ double chi_square_critical_value(double alpha, int nu) {
   return 0.5 * (lo + hi);
 }
 
+int count_data(const Problem& problem, const Evaluation& evaluation) {
+  int data = 0;
+  for (const PairedMode& pair : evaluation.pairs) {
+    const MeasuredMode& measured = problem.measured[pair.measured];
+    if (measured.weight > 0) data += 1;
+    if (measured.has_shape_term() && measured.shape.size() > 1) data += static_cast<int>(measured.shape.size()) - 1;
+  }
+  return data;
+}
+
 Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise) {
   std::string error;
   if (!noise.IsValid(&error)) throw std::invalid_argument("noise_weighted: " + error);

@@ -1,0 +1,324 @@
+// The uncertainty of a calibrated point: Laplace (sandwich) intervals and profile intervals
+// (formulas in uncertainty.hpp).
+#include "modalcal/uncertainty.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+#include "modalcal/objective.hpp"
+#include "modalcal/residual_test.hpp"
+
+namespace modalcal {
+
+namespace {
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+bool has_noise(const Problem& problem) { return problem.measurement_noise && problem.measurement_noise->frequency > 0; }
+
+/// The residuals and their Jacobian in the optimizer's variables at p.
+struct Linearization {
+  Vector residuals;
+  Matrix jacobian;  // d residuals / dx
+};
+
+Linearization linearize(const Problem& problem, const Vector& p, const ParameterScaling& scaling) {
+  Objective objective(problem);
+  const Evaluation e = objective.evaluate(p, Need::Jacobian);
+  if (!e.ok) throw std::runtime_error("estimate_uncertainty: the model cannot be evaluated at the calibrated point: " + e.message);
+  return {e.residuals, e.jacobian * scaling.first_derivative(scaling.to_scaled(p)).asDiagonal()};
+}
+
+/// Each residual's variance under the stated noise, from the ratio of the noise-weighted rows to
+/// the objective's: the two problems differ only in the weights of whole terms.
+Vector residual_variances(const Linearization& own, const Linearization& weighted) {
+  Vector variance = Vector::Ones(own.residuals.size());
+  for (Eigen::Index k = 0; k < variance.size(); ++k) {
+    const double own_norm = own.jacobian.row(k).norm(), weighted_norm = weighted.jacobian.row(k).norm();
+    double ratio = 0;  // sqrt(noise weight / own weight)
+    if (own_norm > 0) ratio = weighted_norm / own_norm;
+    else if (own.residuals[k] != 0) ratio = std::abs(weighted.residuals[k] / own.residuals[k]);
+    variance[k] = ratio > 0 ? 1 / (ratio * ratio) : 0;
+  }
+  return variance;
+}
+
+/// C = A^+ B A^+ with A = J^T J, B = J^T diag(variance) J; a parameter with a part in a direction
+/// A does not see gets an infinite variance.
+Matrix sandwich_covariance(const Matrix& J, const Vector& variance) {
+  const Matrix A = J.transpose() * J;
+  const Matrix B = J.transpose() * variance.asDiagonal() * J;
+  Eigen::SelfAdjointEigenSolver<Matrix> eigen(A);
+  const Vector& values = eigen.eigenvalues();
+  const Matrix& V = eigen.eigenvectors();
+  const double largest = values.size() ? values.maxCoeff() : 0;
+  Vector inverse = Vector::Zero(values.size());
+  std::vector<bool> blind(values.size(), false);
+  for (Eigen::Index k = 0; k < values.size(); ++k) {
+    if (values[k] > 1e-12 * largest && values[k] > 0) inverse[k] = 1 / values[k];
+    else blind[k] = true;
+  }
+  const Matrix A_plus = V * inverse.asDiagonal() * V.transpose();
+  Matrix C = A_plus * B * A_plus;
+  for (Eigen::Index j = 0; j < C.rows(); ++j)
+    for (Eigen::Index k = 0; k < values.size(); ++k)
+      if (blind[k] && V(j, k) * V(j, k) > 1e-8) C(j, j) = kInfinity;
+  return C;
+}
+
+Matrix correlation_of(const Matrix& C) {
+  Matrix R(C.rows(), C.cols());
+  for (Eigen::Index i = 0; i < C.rows(); ++i)
+    for (Eigen::Index j = 0; j < C.cols(); ++j) {
+      const double d = std::sqrt(C(i, i) * C(j, j));
+      R(i, j) = std::isfinite(d) && d > 0 ? C(i, j) / d : (i == j ? 1.0 : NAN);
+    }
+  return R;
+}
+
+/// The likelihood the profiles follow: its problem (noise-weighted, or the objective's own) and
+/// the factor that turns |r|^2 into a chi-square.
+struct Likelihood {
+  Problem problem;
+  double factor = 1;
+};
+
+/// `likelihood` with parameter j fixed at `value`: its targets set in the model, the parameter
+/// removed.
+Problem with_fixed(const Problem& problem, size_t j, double value) {
+  Problem fixed = problem;
+  for (PropertyId t : fixed.parameters[j].targets) fixed.model.properties[t].value = value;
+  fixed.parameters.erase(fixed.parameters.begin() + static_cast<std::ptrdiff_t>(j));
+  return fixed;
+}
+
+Vector without(const Vector& v, size_t j) {
+  Vector out(v.size() - 1);
+  const Eigen::Index J = static_cast<Eigen::Index>(j);
+  out << v.head(J), v.tail(v.size() - J - 1);
+  return out;
+}
+
+/// The chi-square of `problem` at `p` (NaN when it cannot be evaluated).
+double chi_square(const Likelihood& l, const Problem& problem, const Vector& p) {
+  Objective objective(problem);
+  const Evaluation e = objective.evaluate(p, Need::Value);
+  return e.ok ? l.factor * e.residuals.squaredNorm() : NAN;
+}
+
+/// One side (`direction` ±1) of parameter j's profile from the calibrated point `best` (where
+/// the likelihood is at its minimum `minimum`): the end point in p, and whether it is open.
+std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, double minimum, size_t j,
+                                     double step, int direction, const UncertaintyOptions& options, int* calibrations) {
+  const ParameterScaling scaling(l.problem.parameters);
+  const Parameter& q = l.problem.parameters[j];
+  const double x_hi = scaling.to_scaled(l.problem.upper_bounds())[static_cast<Eigen::Index>(j)];
+  const double x_lo = scaling.to_scaled(l.problem.lower_bounds())[static_cast<Eigen::Index>(j)];
+  const double x_end = direction > 0 ? x_hi : x_lo;
+  const double quantile = chi_square_critical_value(1 - options.confidence, 1);
+  Vector x = scaling.to_scaled(best);
+  double x_prev = x[static_cast<Eigen::Index>(j)], rise_prev = 0;
+  Vector others = without(best, j);
+  for (int k = 0; k < options.profile_steps; ++k, step *= 1.5) {
+    double x_try = x_prev + direction * step;
+    const bool at_end = direction > 0 ? x_try >= x_end : x_try <= x_end;
+    if (at_end) x_try = x_end;
+    x[static_cast<Eigen::Index>(j)] = x_try;
+    const double value = scaling.to_physical(x)[static_cast<Eigen::Index>(j)];
+    const Problem fixed = with_fixed(l.problem, j, value);
+    double rise = NAN;
+    if (fixed.parameters.empty()) {
+      rise = chi_square(l, fixed, Vector(0)) - minimum;
+    } else {
+      Objective objective(fixed);
+      const ReducedSummary fit = minimize_reduced(objective, others, options.recalibration);
+      ++*calibrations;
+      if (fit.final.size() == others.size()) {
+        others = fit.final;
+        rise = chi_square(l, fixed, others) - minimum;
+      }
+    }
+    if (!std::isfinite(rise)) break;  // the model fails here: end the profile where it still held
+    if (rise >= quantile) {
+      const double t = (quantile - rise_prev) / (rise - rise_prev);
+      x[static_cast<Eigen::Index>(j)] = x_prev + t * (x_try - x_prev);
+      return {scaling.to_physical(x)[static_cast<Eigen::Index>(j)], false};
+    }
+    if (at_end) return {direction > 0 ? q.upper : q.lower, true};
+    x_prev = x_try;
+    rise_prev = std::max(0.0, rise);
+  }
+  x[static_cast<Eigen::Index>(j)] = x_prev;
+  return {scaling.to_physical(x)[static_cast<Eigen::Index>(j)], true};
+}
+
+std::string format_value(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.4g", v);
+  return b;
+}
+
+}  // namespace
+
+ReducedOptions UncertaintyOptions::default_recalibration_options() {
+  ReducedOptions options;
+  options.method = ReducedOptions::Method::GaussNewton;
+  options.max_iterations = 60;
+  options.gradient_tolerance = 1e-4;
+  options.relative_gradient_tolerance = 1e-8;
+  options.function_tolerance = 1e-5;
+  return options;
+}
+
+bool UncertaintyOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& message) {
+    if (error) *error = message;
+    return false;
+  };
+  if (!(confidence > 0 && confidence < 1)) return bad("confidence = " + format_value(confidence) + ": must be in (0, 1)");
+  if (!(profile_half_width > 0)) return bad("profile_half_width = " + format_value(profile_half_width) + ": must be > 0");
+  if (profile_steps < 1 || profile_steps > 1000)
+    return bad("profile_steps = " + std::to_string(profile_steps) + ": must be in [1, 1000]");
+  std::string inner;
+  if (!recalibration.IsValid(&inner)) return bad("recalibration." + inner);
+  return true;
+}
+
+Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const UncertaintyOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("UncertaintyOptions: " + error);
+  const size_t np = problem.parameters.size();
+  if (p.size() != static_cast<Eigen::Index>(np))
+    throw std::invalid_argument("estimate_uncertainty: " + std::to_string(p.size()) + " values for " +
+                                std::to_string(np) + " parameters");
+  Uncertainty u;
+  u.confidence = options.confidence;
+  u.noise_stated = has_noise(problem);
+  const ParameterScaling scaling(problem.parameters);
+  const Linearization own = linearize(problem, p, scaling);
+  Objective counting(problem);
+  u.num_data = count_data(problem, counting.evaluate(p, Need::Value));
+  Likelihood likelihood{problem, 1};
+  Matrix C;
+  if (u.noise_stated) {
+    likelihood.problem = noise_weighted(problem, *problem.measurement_noise);
+    const Linearization weighted = linearize(likelihood.problem, p, scaling);
+    u.statistic = weighted.residuals.squaredNorm();
+    if (weighted.residuals.size() == own.residuals.size()) {
+      C = sandwich_covariance(own.jacobian, residual_variances(own, weighted));
+    } else {
+      C = sandwich_covariance(weighted.jacobian, Vector::Ones(weighted.residuals.size()));
+    }
+    u.note = "noise as stated in the problem";
+  } else {
+    const int dof = u.num_data - static_cast<int>(np);
+    u.sigma2 = dof > 0 ? own.residuals.squaredNorm() / dof : kInfinity;
+    likelihood.factor = 1 / u.sigma2;
+    u.statistic = likelihood.factor * own.residuals.squaredNorm();
+    C = sandwich_covariance(own.jacobian, Vector::Constant(own.residuals.size(), u.sigma2));
+    u.note = "no stated noise: one noise variance for every weighted residual, estimated from the residual (" +
+             std::to_string(u.num_data) + " data, " + std::to_string(np) + " parameters)";
+  }
+  u.correlation = correlation_of(C);
+  const double z = std::sqrt(chi_square_critical_value(1 - options.confidence, 1));
+  const Vector x = scaling.to_scaled(p), dp_dx = scaling.first_derivative(x);
+  std::vector<size_t> to_profile;
+  for (size_t j = 0; j < np; ++j) {
+    const Eigen::Index J = static_cast<Eigen::Index>(j);
+    const Parameter& q = problem.parameters[j];
+    ParameterUncertainty pu;
+    pu.name = q.name;
+    pu.value = p[J];
+    pu.scaled_standard_error = std::sqrt(C(J, J));
+    pu.standard_error = std::abs(dp_dx[J]) * pu.scaled_standard_error;
+    Vector lo = x, hi = x;
+    lo[J] -= z * pu.scaled_standard_error;
+    hi[J] += z * pu.scaled_standard_error;
+    const double a = std::isfinite(lo[J]) ? scaling.to_physical(lo)[J] : -kInfinity;
+    const double b = std::isfinite(hi[J]) ? scaling.to_physical(hi)[J] : kInfinity;
+    pu.lower = std::max(std::min(a, b), q.lower);
+    pu.upper = std::min(std::max(a, b), q.upper);
+    pu.at_bound = std::min(a, b) < q.lower || std::max(a, b) > q.upper;
+    if (pu.at_bound || !(z * pu.scaled_standard_error <= options.profile_half_width)) to_profile.push_back(j);
+    u.parameters.push_back(pu);
+  }
+  if (!options.profiles || to_profile.empty() || !std::isfinite(likelihood.factor)) {
+    u.likelihood_minimum = u.statistic;
+    return u;
+  }
+  // The profiles' reference is the likelihood's own minimum, which the calibration (with the
+  // objective's weights) need not have reached.
+  Vector best = p;
+  {
+    Objective objective(likelihood.problem);
+    const ReducedSummary fit = minimize_reduced(objective, p, options.recalibration);
+    const double at_fit = fit.final.size() == p.size() ? chi_square(likelihood, likelihood.problem, fit.final) : NAN;
+    u.likelihood_minimum = u.statistic;
+    if (at_fit < u.statistic) {
+      u.likelihood_minimum = at_fit;
+      best = fit.final;
+    }
+  }
+  for (size_t j : to_profile) {
+    ParameterUncertainty& pu = u.parameters[j];
+    const double step = std::clamp(std::isfinite(pu.scaled_standard_error) ? pu.scaled_standard_error : 0.25, 0.02, 0.25);
+    const auto [low, open_low] =
+        profile_side(likelihood, best, u.likelihood_minimum, j, step, -1, options, &pu.profile_calibrations);
+    const auto [high, open_high] =
+        profile_side(likelihood, best, u.likelihood_minimum, j, step, +1, options, &pu.profile_calibrations);
+    pu.profile = {low, high};
+    pu.profile_open_below = open_low;
+    pu.profile_open_above = open_high;
+  }
+  return u;
+}
+
+std::string Uncertainty::BriefReport() const {
+  std::string text;
+  char line[240];
+  for (const ParameterUncertainty& pu : parameters) {
+    std::snprintf(line, sizeof line, "%s = %.4g +/- %.3g, %.0f %% interval [%.4g, %.4g]%s\n", pu.name.c_str(), pu.value,
+                  pu.standard_error, 100 * confidence, pu.lower, pu.upper, pu.at_bound ? " (clipped to the bounds)" : "");
+    text += line;
+  }
+  return text;
+}
+
+std::string Uncertainty::FullReport() const {
+  char line[320];
+  std::snprintf(line, sizeof line, "parameter uncertainty (%.0f %%; %s):\n", 100 * confidence, note.c_str());
+  std::string text = line;
+  std::snprintf(line, sizeof line, "%-16s %12s %12s %12s %12s   %s\n", "parameter", "value", "std. error", "lower",
+                "upper", "profile interval");
+  text += line;
+  for (const ParameterUncertainty& pu : parameters) {
+    std::string profile = "-";
+    if (pu.profile)
+      profile = (pu.profile_open_below ? "open below " : "[") + format_value(pu.profile->first) + ", " +
+                format_value(pu.profile->second) + (pu.profile_open_above ? " open above" : "]");
+    std::snprintf(line, sizeof line, "%-16s %12.4g %12.3g %12.4g %12.4g%s %s\n", pu.name.c_str(), pu.value,
+                  pu.standard_error, pu.lower, pu.upper, pu.at_bound ? "*" : " ", profile.c_str());
+    text += line;
+  }
+  text += "(lower, upper: the Laplace interval, * where clipped to the bounds; profile interval where that interval "
+          "cannot be trusted: a side is open when the misfit never rises enough before the bound)\n";
+  if (parameters.size() > 1) {
+    text += "correlation:\n";
+    for (Eigen::Index i = 0; i < correlation.rows(); ++i) {
+      std::snprintf(line, sizeof line, "  %-16s", parameters[static_cast<size_t>(i)].name.c_str());
+      text += line;
+      for (Eigen::Index j = 0; j < correlation.cols(); ++j) {
+        std::snprintf(line, sizeof line, " %6.2f", correlation(i, j));
+        text += line;
+      }
+      text += "\n";
+    }
+  }
+  return text;
+}
+
+}  // namespace modalcal
