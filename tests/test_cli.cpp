@@ -225,7 +225,17 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   for (const auto& p : j["parameters"]) {
     for (const char* key : {"name", "initial", "final", "truth", "lower", "upper"}) EXPECT_TRUE(p.contains(key)) << key;
     EXPECT_NEAR(p["final"].get<double>() / p["truth"].get<double>(), 1.0, 1e-6) << p["name"];
+    // The uncertainty: noise-free data leave a residual at the rounding floor, so the noise
+    // estimated from it is tiny and every interval hugs the value.
+    ASSERT_TRUE(p["standard_error"].is_number()) << p.dump();
+    EXPECT_LT(p["standard_error"].get<double>(), 1e-4 * p["final"].get<double>()) << p.dump();
+    EXPECT_LE(p["interval"][0].get<double>(), p["final"].get<double>());
+    EXPECT_GE(p["interval"][1].get<double>(), p["final"].get<double>());
+    EXPECT_TRUE(p["profile_interval"].is_null()) << p.dump();  // well identified: not profiled
+    EXPECT_EQ(p["correlation"].size(), j["parameters"].size());
   }
+  EXPECT_EQ(j["uncertainty"]["noise"], "estimated from the residual");
+  EXPECT_NE(run.output.find("parameter uncertainty"), std::string::npos) << run.output;
   for (const auto& m : j["modes"]) EXPECT_GT(m["mac"].get<double>(), 0.999);
 
   // The CSV tables hold the JSON's rows: one per parameter, measured mode and iteration.

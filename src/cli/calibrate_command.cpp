@@ -49,6 +49,7 @@ struct CalibrateArgs {
   bool limited_memory = false;
   int print_level = 0;
   std::vector<std::string> add;  // effects to add (change texts or candidate names)
+  std::string uncertainty = "profile";  // profile, laplace or none
 };
 
 Scaling parse_scaling(const std::string& name) {
@@ -244,7 +245,16 @@ int run_calibrate(const CalibrateArgs& args) {
   }
   if (!effects.empty()) return calibrate_with_effects(problem, p0, effects, args, objective_options);
   Objective objective(problem, objective_options);
-  const Calibrated result = calibrate(objective, p0, args);
+  Calibrated result = calibrate(objective, p0, args);
+  if (result.usable && args.uncertainty != "none") {
+    UncertaintyOptions options;
+    options.profiles = args.uncertainty == "profile";
+    try {
+      add_uncertainty(estimate_uncertainty(problem, result.final, options), &result.report);
+    } catch (const std::runtime_error& e) {
+      result.report.text += std::string("\nno parameter uncertainty: ") + e.what() + "\n";
+    }
+  }
   std::fputs(result.report.text.c_str(), stdout);
   write_outputs(args, result.report.json(), problem);
   if (!args.vtu.empty() && result.usable) {
@@ -292,6 +302,12 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "calibrate again with this effect added and show before and after: a change without its value "
                   "(joint2.kry, point_mass@top:mass, support@post_bottom:kx), with a start value (joint2.kry=1e5), "
                   "or a candidate's name from diagnose (repeatable)");
+  cmd->add_option("--uncertainty", args->uncertainty,
+                  "parameter uncertainty at the result: profile (default: standard errors, 95 % intervals and "
+                  "correlations, and profile intervals where the data hardly see a parameter), laplace (without "
+                  "the profiles) or none")
+      ->check(CLI::IsMember({"profile", "laplace", "none"}))
+      ->default_str(args->uncertainty);
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")

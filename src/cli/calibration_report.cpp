@@ -76,6 +76,28 @@ CalibrationReport make_report(Objective& objective, const Vector& initial, const
   return report;
 }
 
+void add_uncertainty(const Uncertainty& u, CalibrationReport* report) {
+  report->text += "\n" + u.FullReport();
+  for (size_t j = 0; j < u.parameters.size() && j < report->parameters.size(); ++j) {
+    const ParameterUncertainty& pu = u.parameters[j];
+    nlohmann::json& entry = report->parameters[j];
+    entry["standard_error"] = json_number(pu.standard_error);
+    entry["interval"] = {json_number(pu.lower), json_number(pu.upper)};
+    entry["profile_interval"] = nullptr;
+    if (pu.profile)
+      entry["profile_interval"] = {pu.profile_open_below ? nlohmann::json() : json_number(pu.profile->first),
+                                   pu.profile_open_above ? nlohmann::json() : json_number(pu.profile->second)};
+    entry["correlation"] = nlohmann::json::array();
+    for (Eigen::Index k = 0; k < u.correlation.cols(); ++k)
+      entry["correlation"].push_back(json_number(u.correlation(static_cast<Eigen::Index>(j), k)));
+  }
+  report->summary["uncertainty"] = {{"confidence", u.confidence},
+                                    {"noise", u.noise_stated ? "stated" : "estimated from the residual"},
+                                    {"statistic", u.statistic},
+                                    {"num_data", u.num_data},
+                                    {"note", u.note}};
+}
+
 namespace {
 
 nlohmann::json history_json(const std::vector<IterationRecord>& records) {

@@ -10,6 +10,7 @@
 #include "modalcal/fullspace.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/uncertainty.hpp"
 
 namespace modalcal::cli {
 
@@ -25,6 +26,11 @@ struct CalibrationReport {
 /// Parameter and mode tables; evaluates the objective at `final` to tabulate the modes (no mode
 /// table when `final` is empty). `summary` is left for the method to fill.
 CalibrationReport make_report(Objective& objective, const Vector& initial, const Vector& final);
+
+/// Adds `u` to `report`: its table to the text, and per parameter `standard_error`, `interval`
+/// [lower, upper], `profile_interval` ([lower, upper], a side null where open, or null when not
+/// profiled) and `correlation` (its row) to the JSON; `uncertainty` {confidence, noise, note}.
+void add_uncertainty(const Uncertainty& u, CalibrationReport* report);
 
 /// The report's tables as three CSV files beside each other, for spreadsheets:
 /// `<prefix>_parameters.csv` (name,initial,final,truth,error_percent,lower,upper),
