@@ -9,6 +9,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "modalcal/effects.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/residual_test.hpp"
 
@@ -164,15 +165,8 @@ std::string format_value(double v) {
 
 }  // namespace
 
-ReducedOptions UncertaintyOptions::default_recalibration_options() {
-  ReducedOptions options;
-  options.method = ReducedOptions::Method::GaussNewton;
-  options.max_iterations = 60;
-  options.gradient_tolerance = 1e-4;
-  options.relative_gradient_tolerance = 1e-8;
-  options.function_tolerance = 1e-5;
-  return options;
-}
+// The same fits as the effect ranking's refits: a chi-square misfit, recalibrated from nearby.
+ReducedOptions UncertaintyOptions::default_recalibration_options() { return RankingOptions::default_refit_options(); }
 
 bool UncertaintyOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& message) {
