@@ -71,6 +71,9 @@ struct ParameterUncertainty {
   std::optional<std::pair<double, double>> profile;
   bool profile_open_below = false, profile_open_above = false;
   int profile_calibrations = 0;
+  /// The profile's points (value, rise of the chi-square over its minimum), in increasing value,
+  /// the fit's own point (rise 0 at the likelihood's minimum) included.
+  std::vector<std::pair<double, double>> profile_points;
 };
 
 /// The uncertainty of a calibrated point: the summary of estimate_uncertainty().

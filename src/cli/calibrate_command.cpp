@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <optional>
 #include <iostream>
 
 #include "cli/calibration_report.hpp"
@@ -14,7 +16,10 @@
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/effects.hpp"
 #include "modalcal/fullspace.hpp"
+#include "modalcal/output.hpp"
+#include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/residual_test.hpp"
 #include "modalcal/vtu.hpp"
 
 namespace modalcal::cli {
@@ -50,7 +55,51 @@ struct CalibrateArgs {
   int print_level = 0;
   std::vector<std::string> add;  // effects to add (change texts or candidate names)
   std::string uncertainty = "profile";  // profile, laplace or none
+  std::string uncertainty_plot;         // .png or .svg: the correlation matrix (and the profiles beside)
 };
+
+/// `path` with `suffix` before its extension: out/u.png -> out/u_profiles.png.
+std::string with_suffix(const std::string& path, const std::string& suffix) {
+  const std::filesystem::path p(path);
+  return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
+}
+
+/// The correlation matrix as a heat map at `path`, and the profiles (the chi-square's rise against
+/// the value relative to the fit, with the interval's threshold) beside it as PATH_profiles.EXT.
+void plot_uncertainty(const std::string& path, const Uncertainty& u) {
+  HeatMap map;
+  for (const ParameterUncertainty& pu : u.parameters) {
+    map.row_labels.push_back(pu.name);
+    map.column_labels.push_back(pu.name);
+  }
+  map.values = u.correlation;
+  map.min = -1;
+  map.max = 1;
+  map.value_title = "correlation";
+  plot_heat_map(path, "correlation of the calibrated parameters", map);
+  std::printf("wrote %s\n", path.c_str());
+  std::vector<PlotPanel> panels;
+  const double threshold = chi_square_critical_value(1 - u.confidence, 1);
+  for (const ParameterUncertainty& pu : u.parameters) {
+    if (pu.profile_points.size() < 2) continue;
+    PlotPanel panel;
+    panel.ylabel = "rise of the chi-square";
+    panel.log_y = false;
+    PlotSeries curve{pu.name, {}, {}}, level{"interval threshold", {}, {}};
+    for (const auto& [value, rise] : pu.profile_points) {
+      curve.x.push_back(value / pu.value);
+      curve.y.push_back(rise);
+    }
+    level.x = {curve.x.front(), curve.x.back()};
+    level.y = {threshold, threshold};
+    panel.series = {curve, level};
+    panels.push_back(panel);
+  }
+  if (panels.empty()) return;
+  const std::string profiles = with_suffix(path, "_profiles");
+  plot_panels(profiles, "profiles of the parameters the data hardly see", "value / calibrated value", panels);
+  std::printf("wrote %s\n", profiles.c_str());
+}
 
 Scaling parse_scaling(const std::string& name) {
   if (name == "none") return Scaling::None;
@@ -229,6 +278,13 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
 int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
+  if (!args.uncertainty_plot.empty()) {  // refused before the run, like --vtu
+    const std::string extension = std::filesystem::path(args.uncertainty_plot).extension().string();
+    if (extension != ".png" && extension != ".svg")
+      throw InputError("--uncertainty-plot " + args.uncertainty_plot + ": the file name must end in .png or .svg");
+    check_not_input(args.uncertainty_plot, problem.source_files);
+    check_not_input(with_suffix(args.uncertainty_plot, "_profiles"), problem.source_files);
+  }
   require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;
@@ -249,11 +305,14 @@ int run_calibrate(const CalibrateArgs& args) {
   if (result.usable && args.uncertainty != "none") {
     UncertaintyOptions options;
     options.profiles = args.uncertainty == "profile";
+    std::optional<Uncertainty> u;
     try {
-      add_uncertainty(estimate_uncertainty(problem, result.final, options), &result.report);
+      u = estimate_uncertainty(problem, result.final, options);
+      add_uncertainty(*u, &result.report);
     } catch (const std::runtime_error& e) {
       result.report.text += std::string("\nno parameter uncertainty: ") + e.what() + "\n";
     }
+    if (u && !args.uncertainty_plot.empty()) plot_uncertainty(args.uncertainty_plot, *u);
   }
   std::fputs(result.report.text.c_str(), stdout);
   write_outputs(args, result.report.json(), problem);
@@ -308,6 +367,9 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "the profiles) or none")
       ->check(CLI::IsMember({"profile", "laplace", "none"}))
       ->default_str(args->uncertainty);
+  cmd->add_option("--uncertainty-plot", args->uncertainty_plot,
+                  "plot the parameters' correlation matrix to this .png or .svg file, and their profiles (where "
+                  "profiled) beside it as FILE_profiles.png");
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")

@@ -114,7 +114,8 @@ double chi_square(const Likelihood& l, const Problem& problem, const Vector& p) 
 /// One side (`direction` ±1) of parameter j's profile from the calibrated point `best` (where
 /// the likelihood is at its minimum `minimum`): the end point in p, and whether it is open.
 std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, double minimum, size_t j,
-                                     double step, int direction, const UncertaintyOptions& options, int* calibrations) {
+                                     double step, int direction, const UncertaintyOptions& options,
+                                     ParameterUncertainty* pu) {
   const ParameterScaling scaling(l.problem.parameters);
   const Parameter& q = l.problem.parameters[j];
   const double x_hi = scaling.to_scaled(l.problem.upper_bounds())[static_cast<Eigen::Index>(j)];
@@ -137,13 +138,14 @@ std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, do
     } else {
       Objective objective(fixed);
       const ReducedSummary fit = minimize_reduced(objective, others, options.recalibration);
-      ++*calibrations;
+      ++pu->profile_calibrations;
       if (fit.final.size() == others.size()) {
         others = fit.final;
         rise = chi_square(l, fixed, others) - minimum;
       }
     }
     if (!std::isfinite(rise)) break;  // the model fails here: end the profile where it still held
+    pu->profile_points.emplace_back(value, rise);
     if (rise >= quantile) {
       const double t = (quantile - rise_prev) / (rise - rise_prev);
       x[static_cast<Eigen::Index>(j)] = x_prev + t * (x_try - x_prev);
@@ -216,6 +218,10 @@ Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const 
     C = sandwich_covariance(own.jacobian, Vector::Constant(own.residuals.size(), u.sigma2));
     u.note = "no stated noise: one noise variance for every weighted residual, estimated from the residual (" +
              std::to_string(u.num_data) + " data, " + std::to_string(np) + " parameters)";
+    if (dof <= 0)
+      u.note = "no stated noise, and no more data (" + std::to_string(u.num_data) + ") than parameters (" +
+               std::to_string(np) + "): the noise cannot be estimated, so nothing bounds the parameters; state the "
+               "measurement noise (measured: noise:) to get intervals";
   }
   u.correlation = correlation_of(C);
   const double z = std::sqrt(chi_square_critical_value(1 - options.confidence, 1));
@@ -240,7 +246,7 @@ Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const 
     if (pu.at_bound || !(z * pu.scaled_standard_error <= options.profile_half_width)) to_profile.push_back(j);
     u.parameters.push_back(pu);
   }
-  if (!options.profiles || to_profile.empty() || !std::isfinite(likelihood.factor)) {
+  if (!options.profiles || to_profile.empty() || !(likelihood.factor > 0)) {
     u.likelihood_minimum = u.statistic;
     return u;
   }
@@ -260,10 +266,10 @@ Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const 
   for (size_t j : to_profile) {
     ParameterUncertainty& pu = u.parameters[j];
     const double step = std::clamp(std::isfinite(pu.scaled_standard_error) ? pu.scaled_standard_error : 0.25, 0.02, 0.25);
-    const auto [low, open_low] =
-        profile_side(likelihood, best, u.likelihood_minimum, j, step, -1, options, &pu.profile_calibrations);
-    const auto [high, open_high] =
-        profile_side(likelihood, best, u.likelihood_minimum, j, step, +1, options, &pu.profile_calibrations);
+    pu.profile_points.emplace_back(best[static_cast<Eigen::Index>(j)], 0.0);
+    const auto [low, open_low] = profile_side(likelihood, best, u.likelihood_minimum, j, step, -1, options, &pu);
+    const auto [high, open_high] = profile_side(likelihood, best, u.likelihood_minimum, j, step, +1, options, &pu);
+    std::sort(pu.profile_points.begin(), pu.profile_points.end());
     pu.profile = {low, high};
     pu.profile_open_below = open_low;
     pu.profile_open_above = open_high;
