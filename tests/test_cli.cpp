@@ -521,5 +521,54 @@ TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   EXPECT_EQ(ReadFile(nominal), before);
 }
 
+TEST(Cli, CampaignCalibratesEachDataSetAndTellsTestToTestVariationFromNoise) {
+  const std::string nominal = WriteTempFile("campaign-nominal.yaml", kSensedBar);
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  std::filesystem::create_directories(dir + "/campaign");
+  const std::string synth = "synth " + nominal + " --modes 1,2,3,4 --noise-freq 0.002 --noise-shape 0.01 ";
+  for (int seed = 1; seed <= 5; ++seed)
+    ASSERT_EQ(RunCli(synth + "--seed " + std::to_string(seed) + " -o " + dir + "/campaign/unit" + std::to_string(seed) +
+                     ".yaml")
+                  .exit_code,
+              0);
+  // Five tests of one structure: E spreads as each calibration's own uncertainty says (tested at
+  // 0.1 %, so that a false "varies" has a chance of one in a thousand for any draw of the noise).
+  CliRun run = RunCli("campaign " + nominal + " " + dir + "/campaign --significance 0.001 --json " + dir +
+                      "/campaign.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  nlohmann::json j = nlohmann::json::parse(ReadFile(dir + "/campaign.json"));
+  ASSERT_EQ(j["runs"].size(), 5u);
+  for (const auto& r : j["runs"]) {
+    EXPECT_TRUE(r["ok"].get<bool>()) << r.dump();
+    EXPECT_NEAR(r["parameters"][0]["value"].get<double>() / 1000, 1, 0.01) << r.dump();
+    EXPECT_GT(r["parameters"][0]["standard_error"].get<double>(), 0);
+  }
+  ASSERT_EQ(j["summary"].size(), 1u);
+  EXPECT_EQ(j["summary"][0]["runs"], 5);
+  EXPECT_FALSE(j["summary"][0]["varies_between_tests"].get<bool>()) << j["summary"].dump();
+
+  // A sixth unit 20 % denser (its E calibrates 20 % lower: f ~ sqrt(E / density)) and a data
+  // file that does not parse:
+  // the bad one is reported and skipped, and E now varies beyond the noise.
+  ASSERT_EQ(RunCli(synth + "--truth bar.density=1.2 --seed 4 -o " + dir + "/heavy.yaml").exit_code, 0);
+  const std::string bad = WriteTempFile("campaign-bad.yaml", "modes: [oops\n");
+  run = RunCli("campaign " + nominal + " " + dir + "/campaign " + dir + "/heavy.yaml " + bad +
+               " --significance 0.001 --json " + dir + "/campaign2.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("FAILED, skipped"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("varies between tests"), std::string::npos) << run.output;
+  j = nlohmann::json::parse(ReadFile(dir + "/campaign2.json"));
+  ASSERT_EQ(j["runs"].size(), 7u);
+  EXPECT_FALSE(j["runs"][6]["ok"].get<bool>());
+  EXPECT_NE(j["runs"][6]["reason"].get<std::string>().find("campaign-bad.yaml"), std::string::npos);
+  EXPECT_NEAR(j["runs"][5]["parameters"][0]["value"].get<double>() * 1.2 / 1000, 1, 0.01) << j["runs"][5].dump();
+  EXPECT_EQ(j["summary"][0]["runs"], 6);
+  EXPECT_TRUE(j["summary"][0]["varies_between_tests"].get<bool>()) << j["summary"].dump();
+
+  // Nothing usable: bad input, exit 2.
+  run = RunCli("campaign " + nominal + " " + bad);
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+}
+
 }  // namespace
 }  // namespace modalcal

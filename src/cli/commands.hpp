@@ -27,6 +27,7 @@ inline CLI::Validator non_negative_number() { return number_from(0, false, "NONN
 
 void register_modes_command(CLI::App& app, int* exit_code);
 void register_calibrate_command(CLI::App& app, int* exit_code);
+void register_campaign_command(CLI::App& app, int* exit_code);
 void register_check_command(CLI::App& app, int* exit_code);
 void register_localize_command(CLI::App& app, int* exit_code);
 /// `study full-vs-reduced`, a subcommand of `study`.

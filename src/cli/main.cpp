@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   modalcal::cli::register_modes_command(app, &exit_code);
   modalcal::cli::register_calibrate_command(app, &exit_code);
+  modalcal::cli::register_campaign_command(app, &exit_code);
   modalcal::cli::register_check_command(app, &exit_code);
   modalcal::cli::register_study_command(app, &exit_code);
   modalcal::cli::register_import_test_data_command(app, &exit_code);
