@@ -88,6 +88,44 @@ struct Likelihood {
   double factor = 1;
 };
 
+/// The covariance of the calibrated point in the optimizer's variables (the sandwich of
+/// uncertainty.hpp), with what `u` records of it (data, statistic, noise, note), and the
+/// likelihood the profiles follow.
+Matrix laplace_covariance(const Problem& problem, const Vector& p, const ParameterScaling& scaling, Uncertainty* u,
+                          Likelihood* likelihood) {
+  const int np = static_cast<int>(problem.parameters.size());
+  u->noise_stated = has_noise(problem);
+  const Linearization own = linearize(problem, p, scaling);
+  Objective counting(problem);
+  u->num_data = count_data(problem, counting.evaluate(p, Need::Value));
+  if (u->noise_stated) {
+    likelihood->problem = noise_weighted(problem, *problem.measurement_noise);
+    const Linearization weighted = linearize(likelihood->problem, p, scaling);
+    u->statistic = weighted.residuals.squaredNorm();
+    u->note = "noise as stated in the problem";
+    if (weighted.residuals.size() != own.residuals.size())  // not the same rows: the Fisher information
+      return sandwich_covariance(weighted.jacobian, Vector::Ones(weighted.residuals.size()));
+    return sandwich_covariance(own.jacobian, residual_variances(own, weighted));
+  }
+  const int dof = u->num_data - np;
+  if (dof <= 0) {
+    u->sigma2 = kInfinity;
+    likelihood->factor = 0;
+    u->note = "no stated noise, and no more data (" + std::to_string(u->num_data) + ") than parameters (" +
+              std::to_string(np) + "): the noise cannot be estimated, so nothing bounds the parameters; state the "
+              "measurement noise (measured: noise:) to get intervals";
+    Matrix C = Matrix::Constant(np, np, NAN);
+    C.diagonal().setConstant(kInfinity);
+    return C;
+  }
+  u->sigma2 = own.residuals.squaredNorm() / dof;
+  likelihood->factor = 1 / u->sigma2;
+  u->statistic = likelihood->factor * own.residuals.squaredNorm();
+  u->note = "no stated noise: one noise variance for every weighted residual, estimated from the residual (" +
+            std::to_string(u->num_data) + " data, " + std::to_string(np) + " parameters)";
+  return sandwich_covariance(own.jacobian, Vector::Constant(own.residuals.size(), u->sigma2));
+}
+
 /// `likelihood` with parameter j fixed at `value`: its targets set in the model, the parameter
 /// removed.
 Problem with_fixed(const Problem& problem, size_t j, double value) {
@@ -193,36 +231,9 @@ Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const 
                                 std::to_string(np) + " parameters");
   Uncertainty u;
   u.confidence = options.confidence;
-  u.noise_stated = has_noise(problem);
-  const ParameterScaling scaling(problem.parameters);
-  const Linearization own = linearize(problem, p, scaling);
-  Objective counting(problem);
-  u.num_data = count_data(problem, counting.evaluate(p, Need::Value));
   Likelihood likelihood{problem, 1};
-  Matrix C;
-  if (u.noise_stated) {
-    likelihood.problem = noise_weighted(problem, *problem.measurement_noise);
-    const Linearization weighted = linearize(likelihood.problem, p, scaling);
-    u.statistic = weighted.residuals.squaredNorm();
-    if (weighted.residuals.size() == own.residuals.size()) {
-      C = sandwich_covariance(own.jacobian, residual_variances(own, weighted));
-    } else {
-      C = sandwich_covariance(weighted.jacobian, Vector::Ones(weighted.residuals.size()));
-    }
-    u.note = "noise as stated in the problem";
-  } else {
-    const int dof = u.num_data - static_cast<int>(np);
-    u.sigma2 = dof > 0 ? own.residuals.squaredNorm() / dof : kInfinity;
-    likelihood.factor = 1 / u.sigma2;
-    u.statistic = likelihood.factor * own.residuals.squaredNorm();
-    C = sandwich_covariance(own.jacobian, Vector::Constant(own.residuals.size(), u.sigma2));
-    u.note = "no stated noise: one noise variance for every weighted residual, estimated from the residual (" +
-             std::to_string(u.num_data) + " data, " + std::to_string(np) + " parameters)";
-    if (dof <= 0)
-      u.note = "no stated noise, and no more data (" + std::to_string(u.num_data) + ") than parameters (" +
-               std::to_string(np) + "): the noise cannot be estimated, so nothing bounds the parameters; state the "
-               "measurement noise (measured: noise:) to get intervals";
-  }
+  const ParameterScaling scaling(problem.parameters);
+  const Matrix C = laplace_covariance(problem, p, scaling, &u, &likelihood);
   u.correlation = correlation_of(C);
   const double z = std::sqrt(chi_square_critical_value(1 - options.confidence, 1));
   const Vector x = scaling.to_scaled(p), dp_dx = scaling.first_derivative(x);
