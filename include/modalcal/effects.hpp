@@ -210,10 +210,13 @@ struct RankedEffect {
   bool model_form_error_after = false;  ///< the residual test still fails with the effect
   double delta_bic = NAN;               ///< \f$\Delta X^2 - \ln n\f$
   double delta_aic = NAN;               ///< \f$\Delta X^2 - 2\f$
+  /// The likelihood-ratio statistic of the refit in chi-square units: ΔX² with a stated noise,
+  /// else the F statistic (the reduction over the refit's residual per degree of freedom).
+  double statistic = NAN;
   int kind_size = 1;        ///< \f$n_{kind}\f$: candidates of its kind screened (1 if declared)
   double kind_penalty = 0;  ///< \f$2 \ln n_{kind}\f$ (0 without RankingOptions::equal_kind_prior)
-  /// S = ΔX² − kind_penalty after a refit, the predicted ΔX² − kind_penalty before.
-  double score() const { return (refitted ? achieved_reduction : predicted_reduction) - kind_penalty; }
+  /// S = statistic − kind_penalty after a refit, the predicted ΔX² − kind_penalty before.
+  double score() const { return (refitted ? statistic : predicted_reduction) - kind_penalty; }
   /// One standard deviation of the identified value, \f$\sqrt{((J^T J)^{-1})_{\theta\theta}}\f$ with
   /// the noise-weighted Jacobian at the refit (the first-ranked effect only; NaN otherwise or
   /// without a stated noise).

@@ -363,6 +363,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees).
     const double statistic =
         ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
+    ranked.statistic = statistic;
     ranked.significant = statistic > ranking.critical_value;
     ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
     ranked.delta_aic = statistic - 2;
