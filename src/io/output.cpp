@@ -46,7 +46,8 @@ void write_file_atomically(const std::string& path, const std::string& content,
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec))
-    throw std::runtime_error("cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
+    throw std::invalid_argument("cannot write '" + path + "': directory '" + dir.string() +
+                                "' does not exist; create it first");
   std::string temp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
   const int fd = mkstemp(temp.data());
   if (fd < 0)
