@@ -13,12 +13,18 @@ namespace modalcal {
 /// For writers of several files, which check every target before writing the first.
 void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
 
+/// check_not_input(), and that the folder `path` would be written in exists: what a command
+/// checks of each output before it runs, so that a bad output name costs no computation.
+/// \throws std::invalid_argument naming the path and the cause.
+void check_output_path(const std::string& path, const std::vector<std::string>& inputs);
+
 /// Writes `content` to `path` atomically (temporary file + rename in the same directory) when
 /// `path` is a regular file or does not exist; straight through it, as a shell redirection would,
 /// when it is a device, a FIFO or a symbolic link (so /dev/stdout, /dev/null and pipes work and
 /// stay what they are).
-/// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk) or a directory,
-///         or std::runtime_error naming the path if it cannot be written.
+/// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk), a directory,
+///         or in a folder that does not exist; std::runtime_error naming the path if it cannot
+///         be written.
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs = {});
 

@@ -282,9 +282,13 @@ int run_calibrate(const CalibrateArgs& args) {
     const std::string extension = std::filesystem::path(args.uncertainty_plot).extension().string();
     if (extension != ".png" && extension != ".svg")
       throw InputError("--uncertainty-plot " + args.uncertainty_plot + ": the file name must end in .png or .svg");
-    check_not_input(args.uncertainty_plot, problem.source_files);
-    check_not_input(with_suffix(args.uncertainty_plot, "_profiles"), problem.source_files);
+    check_output_path(args.uncertainty_plot, problem.source_files);
+    check_output_path(with_suffix(args.uncertainty_plot, "_profiles"), problem.source_files);
   }
+  // Refused before the run, not after: a bad output name costs no computation.
+  for (const std::string* out : {&args.json, &args.history_plot})
+    if (!out->empty()) check_output_path(*out, problem.source_files);
+  if (!args.csv.empty()) check_output_path(args.csv + "_parameters.csv", problem.source_files);
   require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;

@@ -184,7 +184,7 @@ int run_campaign(const CampaignArgs& args) {
   const std::vector<std::string> files = data_files(args.data);
   std::vector<std::string> inputs = problem.source_files;
   for (const std::string& f : files) inputs.push_back(fs::absolute(f).string());
-  if (!args.json.empty()) check_not_input(args.json, inputs);
+  if (!args.json.empty()) check_output_path(args.json, inputs);
   const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
   fs::create_directories(folder);
   std::vector<Run> runs;

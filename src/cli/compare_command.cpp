@@ -171,7 +171,7 @@ int run_compare(const CompareArgs& args) {
   }
   json["warnings"] = c.warnings;
   for (const std::string& plot : {args.mac_plot, args.error_plot})
-    if (!plot.empty()) check_not_input(plot, problem.source_files);
+    if (!plot.empty()) check_output_path(plot, problem.source_files);
   write_json(args.json, json, problem);
 
   const std::string name = problem.name.empty() ? problem.path : problem.name;

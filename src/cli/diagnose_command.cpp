@@ -338,7 +338,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   print_warnings(problem);
   // Refused before the diagnosis runs, not after: no output may replace a file the run reads.
   for (const std::string* out : {&args.json, &args.plot, &args.map, &args.write_problem})
-    if (!out->empty()) check_not_input(*out, problem.source_files);
+    if (!out->empty()) check_output_path(*out, problem.source_files);
   const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
   require_start_within_bounds(problem, start);
   DiagnosisOptions options;

@@ -99,7 +99,7 @@ int run_bounds_scaling(const StudyArgs& args) {
   const std::string csv_path = output_path(args, "bounds_scaling.csv");
   write_file_atomically(csv_path, csv.str(), problem.source_files);
   const std::string plot_path = output_path(args, "bounds_scaling.png");
-  check_not_input(plot_path, problem.source_files);
+  check_output_path(plot_path, problem.source_files);
   plot_panels(plot_path, "L-BFGS with and without bounds and scaling: " + problem.name, "iteration",
               {objective_panel, gradient_panel});
   std::printf("histories: %s\nplot: %s\n", csv_path.c_str(), plot_path.c_str());

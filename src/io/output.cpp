@@ -21,6 +21,16 @@ void check_not_input(const std::string& path, const std::vector<std::string>& in
                                   "); choose another output name");
 }
 
+void check_output_path(const std::string& path, const std::vector<std::string>& inputs) {
+  check_not_input(path, inputs);
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw std::invalid_argument("cannot write '" + path + "': directory '" + dir.string() +
+                                "' does not exist; create it first");
+}
+
 namespace {
 
 /// Writes through an existing target that is not a regular file of its own (/dev/stdout, /dev/null,
@@ -37,7 +47,7 @@ void write_in_place(const std::string& path, const std::string& content) {
 
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs) {
-  check_not_input(path, inputs);
+  check_output_path(path, inputs);
   std::error_code ec;
   if (fs::is_directory(path, ec))
     throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
@@ -45,9 +55,6 @@ void write_file_atomically(const std::string& path, const std::string& content,
   if (fs::exists(status) && !fs::is_regular_file(status)) return write_in_place(path, content);
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir, ec))
-    throw std::invalid_argument("cannot write '" + path + "': directory '" + dir.string() +
-                                "' does not exist; create it first");
   std::string temp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
   const int fd = mkstemp(temp.data());
   if (fd < 0)
