@@ -25,13 +25,15 @@ bool has_noise(const Problem& problem) { return problem.measurement_noise && pro
 struct Linearization {
   Vector residuals;
   Matrix jacobian;  // d residuals / dx
+  int data = 0;     // count_data() of the evaluation
 };
 
 Linearization linearize(const Problem& problem, const Vector& p, const ParameterScaling& scaling) {
   Objective objective(problem);
   const Evaluation e = objective.evaluate(p, Need::Jacobian);
   if (!e.ok) throw std::runtime_error("estimate_uncertainty: the model cannot be evaluated at the calibrated point: " + e.message);
-  return {e.residuals, e.jacobian * scaling.first_derivative(scaling.to_scaled(p)).asDiagonal()};
+  return {e.residuals, e.jacobian * scaling.first_derivative(scaling.to_scaled(p)).asDiagonal(),
+          count_data(problem, e)};
 }
 
 /// Each residual's variance under the stated noise, from the ratio of the noise-weighted rows to
@@ -96,8 +98,7 @@ Matrix laplace_covariance(const Problem& problem, const Vector& p, const Paramet
   const int np = static_cast<int>(problem.parameters.size());
   u->noise_stated = has_noise(problem);
   const Linearization own = linearize(problem, p, scaling);
-  Objective counting(problem);
-  u->num_data = count_data(problem, counting.evaluate(p, Need::Value));
+  u->num_data = own.data;
   if (u->noise_stated) {
     likelihood->problem = noise_weighted(problem, *problem.measurement_noise);
     const Linearization weighted = linearize(likelihood->problem, p, scaling);
@@ -149,6 +150,12 @@ double chi_square(const Likelihood& l, const Problem& problem, const Vector& p) 
   return e.ok ? l.factor * e.residuals.squaredNorm() : NAN;
 }
 
+/// The chi-square at the end of a recalibration of the likelihood: its misfit is |r|^2 / 2, so no
+/// further evaluation is needed (NaN when it could not start).
+double chi_square(const Likelihood& l, const ReducedSummary& fit, Eigen::Index size) {
+  return fit.final.size() == size ? 2 * l.factor * fit.final_objective : NAN;
+}
+
 /// One side (`direction` ±1) of parameter j's profile from the calibrated point `best` (where
 /// the likelihood is at its minimum `minimum`): the end point in p, and whether it is open.
 std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, double minimum, size_t j,
@@ -177,10 +184,8 @@ std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, do
       Objective objective(fixed);
       const ReducedSummary fit = minimize_reduced(objective, others, options.recalibration);
       ++pu->profile_calibrations;
-      if (fit.final.size() == others.size()) {
-        others = fit.final;
-        rise = chi_square(l, fixed, others) - minimum;
-      }
+      rise = chi_square(l, fit, others.size()) - minimum;
+      if (fit.final.size() == others.size()) others = fit.final;
     }
     if (!std::isfinite(rise)) break;  // the model fails here: end the profile where it still held
     pu->profile_points.emplace_back(value, rise);
@@ -267,7 +272,7 @@ Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const 
   {
     Objective objective(likelihood.problem);
     const ReducedSummary fit = minimize_reduced(objective, p, options.recalibration);
-    const double at_fit = fit.final.size() == p.size() ? chi_square(likelihood, likelihood.problem, fit.final) : NAN;
+    const double at_fit = chi_square(likelihood, fit, p.size());
     u.likelihood_minimum = u.statistic;
     if (at_fit < u.statistic) {
       u.likelihood_minimum = at_fit;
