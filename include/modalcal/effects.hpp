@@ -83,6 +83,7 @@
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
+#include "modalcal/task_map.hpp"
 
 namespace modalcal {
 
@@ -191,6 +192,9 @@ struct RankingOptions {
   /// Deflated solves to 1e-8: the default 1e-11 buys nothing a ranking can see and costs more
   /// solves (docs/design.md, "Screen").
   ObjectiveOptions objective = default_objective_options();
+  /// How the refits, independent of each other, are run: in turn here when empty; the
+  /// command-line tool passes one that spreads them over the processes of an MPI job.
+  TaskMap task_map;
   /// Returns false and names the field, its value and the violated condition.
   bool IsValid(std::string* error) const;
   static ReducedOptions default_refit_options();

@@ -139,16 +139,24 @@ LoopState make_state(const Problem& fitted, const std::vector<EffectCandidate>& 
 }
 
 /// Calibrates `fitted` with `effects` added, from `p` (the problem's parameters, then each
-/// effect's value); nullopt when the calibration cannot start.
-std::optional<LoopState> refit_with(const Problem& fitted, const std::vector<EffectCandidate>& effects,
-                                    const Vector& p, const DiagnosisOptions& options) {
+/// effect's value): the calibrated values, or nullopt when the calibration cannot start.
+std::optional<Vector> calibrate_with(const Problem& fitted, const std::vector<EffectCandidate>& effects,
+                                     const Vector& p, const DiagnosisOptions& options) {
   const int np = static_cast<int>(fitted.parameters.size());
   std::vector<double> values(p.data() + np, p.data() + p.size());
   const Problem with = problem_with_effects(fitted, effects, values);
   Objective objective(with, options.ranking.objective);
   const ReducedSummary summary = minimize_reduced(objective, p, options.ranking.refit);
   if (summary.final.size() != p.size()) return std::nullopt;
-  return make_state(fitted, effects, summary.final, options.test);
+  return summary.final;
+}
+
+/// The same, with the state after it (one more evaluation of the fit).
+std::optional<LoopState> refit_with(const Problem& fitted, const std::vector<EffectCandidate>& effects,
+                                    const Vector& p, const DiagnosisOptions& options) {
+  const std::optional<Vector> calibrated = calibrate_with(fitted, effects, p, options);
+  if (!calibrated) return std::nullopt;
+  return make_state(fitted, effects, *calibrated, options.test);
 }
 
 /// The effects the model has from the start, with their first-order values at the calibration
@@ -220,16 +228,23 @@ bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOption
   return true;
 }
 
-/// `state` without its effect `k`: the parameters refitted from where they are.
-std::optional<LoopState> without_effect(const Problem& fitted, const LoopState& state, size_t k,
-                                        const DiagnosisOptions& options) {
-  const int np = static_cast<int>(fitted.parameters.size());
+/// `state`'s effects without effect `k`.
+std::vector<EffectCandidate> effects_without(const LoopState& state, size_t k) {
   std::vector<EffectCandidate> effects = state.effects;
   effects.erase(effects.begin() + static_cast<std::ptrdiff_t>(k));
+  return effects;
+}
+
+/// The parameters of `state` without its effect `k`, refitted from where they are (as a TaskMap
+/// result: empty when the calibration cannot start).
+std::string calibrate_without(const Problem& fitted, const LoopState& state, size_t k, const DiagnosisOptions& options) {
+  const int np = static_cast<int>(fitted.parameters.size());
   Vector p(state.parameters.size() - 1);
   const Eigen::Index removed = np + static_cast<Eigen::Index>(k);
   p << state.parameters.head(removed), state.parameters.tail(state.parameters.size() - removed - 1);
-  return refit_with(fitted, effects, p, options);
+  TaskCodec outcome;
+  outcome.put(calibrate_with(fitted, effects_without(state, k), p, options).value_or(Vector()));
+  return outcome.str();
 }
 
 /// The backward pass: while the weakest effect in the model (the one whose removal raises the
@@ -241,9 +256,13 @@ void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
     std::optional<LoopState> weakest;
     double weakest_increase = INFINITY;
     std::string weakest_name;
+    const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
+    const std::vector<std::string> refits =
+        map(state->effects.size(), [&](size_t k) { return calibrate_without(fitted, *state, k, options); });
     for (size_t k = 0; k < state->effects.size(); ++k) {
-      std::optional<LoopState> without = without_effect(fitted, *state, k, options);
-      if (!without) continue;
+      const Vector calibrated = TaskCodec(refits[k]).get_vector();
+      if (calibrated.size() == 0) continue;
+      std::optional<LoopState> without = make_state(fitted, effects_without(*state, k), calibrated, options.test);
       const double increase = without->fit.statistic - state->fit.statistic;
       // Without a stated noise the residual with every effect estimates it (an F-test).
       const int dof = d->rankings.front().num_data - static_cast<int>(state->parameters.size());

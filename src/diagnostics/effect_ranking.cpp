@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "modalcal/effects.hpp"
+#include "modalcal/task_map.hpp"
 
 namespace modalcal {
 
@@ -133,6 +134,36 @@ std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int
       chosen.push_back(k);
   }
   return chosen;
+}
+
+/// One refit (every calibration parameter free, the effect started at its first-order value or
+/// its declared start), as a TaskMap result: the optimizer's outcome, then whether the refitted
+/// model could be evaluated, and its misfit.
+std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, const RankingOptions& options) {
+  const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
+  const EffectCandidate& c = ranked.candidate;
+  double start = c.initial.value_or(ranked.predicted_value);
+  start = std::clamp(start, c.lower, c.upper);
+  if (c.variable == EffectCandidate::Variable::Compliance && !std::isfinite(start)) start = c.upper;
+  const Problem with = problem_with_effects(problem, {c}, {start});
+  Objective refit_objective(with, options.objective);
+  Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
+  p0[np] = start;
+  const ReducedSummary refit = minimize_reduced(refit_objective, p0, options.refit);
+  TaskCodec outcome;
+  outcome.put(static_cast<double>(static_cast<int>(refit.termination)));
+  outcome.put(static_cast<double>(refit.iterations));
+  outcome.put(refit.message);
+  outcome.put(refit.final);
+  const Evaluation after = refit.final.size() == np + 1 ? refit_objective.evaluate(refit.final) : Evaluation();
+  outcome.put(after.ok ? 1.0 : 0.0);
+  if (!after.ok) return outcome.str();
+  const Misfit m = misfit_of(refit_objective, after, static_cast<int>(np) + 1, options.significance);
+  outcome.put(m.statistic);
+  outcome.put(static_cast<double>(m.dof));
+  outcome.put(m.p_value);
+  outcome.put(m.model_form_error ? 1.0 : 0.0);
+  return outcome.str();
 }
 
 }  // namespace
@@ -336,22 +367,25 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
   ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
-  for (size_t k : refit_choices(screened, options.refits)) {
-    RankedEffect& ranked = screened[k];
-    if (!(ranked.predicted_reduction > 0) && !ranked.candidate.initial) continue;
-    const EffectCandidate& c = ranked.candidate;
-    double start = c.initial.value_or(ranked.predicted_value);
-    start = std::clamp(start, c.lower, c.upper);
-    if (c.variable == EffectCandidate::Variable::Compliance && !std::isfinite(start)) start = c.upper;
-    const Problem with = problem_with_effects(problem, {c}, {start});
-    Objective refit_objective(with, options.objective);
-    Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
-    p0[np] = start;
-    ranked.refit = minimize_reduced(refit_objective, p0, options.refit);
-    if (ranked.refit.final.size() != np + 1) continue;
-    const Evaluation after = refit_objective.evaluate(ranked.refit.final);
-    if (!after.ok) continue;
-    const Misfit m = misfit_of(refit_objective, after, np + 1, options.significance);
+  std::vector<size_t> chosen;
+  for (size_t k : refit_choices(screened, options.refits))
+    if (screened[k].predicted_reduction > 0 || screened[k].candidate.initial) chosen.push_back(k);
+  const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
+  const std::vector<std::string> outcomes =
+      map(chosen.size(), [&](size_t i) { return refit_candidate(problem, screened[chosen[i]], options); });
+  for (size_t i = 0; i < chosen.size(); ++i) {
+    RankedEffect& ranked = screened[chosen[i]];
+    TaskCodec outcome(outcomes[i]);
+    ranked.refit.termination = static_cast<TerminationType>(static_cast<int>(outcome.get_number()));
+    ranked.refit.iterations = static_cast<int>(outcome.get_number());
+    ranked.refit.message = outcome.get_text();
+    ranked.refit.final = outcome.get_vector();
+    if (ranked.refit.final.size() != np + 1 || !(outcome.get_number() > 0)) continue;  // no usable refit
+    Misfit m;
+    m.statistic = outcome.get_number();
+    m.dof = static_cast<int>(outcome.get_number());
+    m.p_value = outcome.get_number();
+    m.model_form_error = outcome.get_number() > 0;
     ranked.refitted = true;
     ranked.parameters = ranked.refit.final;
     ranked.value = ranked.refit.final[np];

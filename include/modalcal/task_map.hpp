@@ -1,0 +1,51 @@
+#pragma once
+/// \file task_map.hpp
+/// How a stage runs independent pieces of work (the diagnosis's refits): in turn here, or spread
+/// over the processes of an MPI job by the command-line tool.
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "modalcal/types.hpp"
+
+namespace modalcal {
+
+/// Runs `work(i)` for every i in [0, n), each independent of the others, and returns their
+/// results in index order. A result is text because it may be computed in another process; the
+/// caller encodes what it needs (TaskCodec below) and decodes it from the returned strings.
+/// Every process of a job calls it with the same n and the same work, and every process gets all
+/// the results. An exception thrown by a piece of work is rethrown by the map on every process.
+///
+/// Example: squares of 0..3 in turn:
+/// \code
+///   const TaskMap map = run_in_turn;
+///   auto squares = map(4, [](size_t i) { return std::to_string(i * i); });  // {"0","1","4","9"}
+/// \endcode
+using TaskMap = std::function<std::vector<std::string>(size_t n, const std::function<std::string(size_t)>& work)>;
+
+/// The default TaskMap: each piece of work in index order, in this process.
+std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(size_t)>& work);
+
+/// Numbers written to and read from a task's result text exactly (17 significant digits, NaN and
+/// infinities included), in the order they were written.
+class TaskCodec {
+ public:
+  void put(double value);
+  void put(const std::string& text);  ///< any bytes; length-prefixed
+  void put(const Vector& values);     ///< its size, then its entries
+  std::string str() const { return text_; }
+
+  explicit TaskCodec(std::string text = {}) : text_(std::move(text)) {}
+  /// \throws std::runtime_error when the text holds no more values or is not a TaskCodec's.
+  double get_number();
+  std::string get_text();
+  Vector get_vector();
+
+ private:
+  std::string text_;
+  size_t read_ = 0;
+};
+
+}  // namespace modalcal

@@ -1,0 +1,63 @@
+// The in-process TaskMap and the exact text encoding of task results (task_map.hpp).
+
+#include "modalcal/task_map.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+
+namespace modalcal {
+
+std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(size_t)>& work) {
+  std::vector<std::string> results;
+  results.reserve(n);
+  for (size_t i = 0; i < n; ++i) results.push_back(work(i));
+  return results;
+}
+
+// Each value is a line: "n <%.17g>" for a number (strtod reads nan and inf back), "t <length>"
+// then the bytes for a text, so that any text survives.
+void TaskCodec::put(double value) {
+  char line[48];
+  std::snprintf(line, sizeof line, "n %.17g\n", value);
+  text_ += line;
+}
+
+void TaskCodec::put(const std::string& text) {
+  text_ += "t " + std::to_string(text.size()) + "\n" + text;
+}
+
+void TaskCodec::put(const Vector& values) {
+  put(static_cast<double>(values.size()));
+  for (double v : values) put(v);
+}
+
+Vector TaskCodec::get_vector() {
+  const double size = get_number();
+  if (!(size >= 0 && size < 1e9)) throw std::runtime_error("a task's result holds no vector where one was expected");
+  Vector values(static_cast<Eigen::Index>(size));
+  for (double& v : values) v = get_number();
+  return values;
+}
+
+double TaskCodec::get_number() {
+  const size_t end = text_.find('\n', read_);
+  if (text_.compare(read_, 2, "n ") != 0 || end == std::string::npos)
+    throw std::runtime_error("a task's result holds no number where one was expected");
+  const double value = std::strtod(text_.c_str() + read_ + 2, nullptr);
+  read_ = end + 1;
+  return value;
+}
+
+std::string TaskCodec::get_text() {
+  const size_t end = text_.find('\n', read_);
+  if (text_.compare(read_, 2, "t ") != 0 || end == std::string::npos)
+    throw std::runtime_error("a task's result holds no text where one was expected");
+  const size_t length = std::strtoull(text_.c_str() + read_ + 2, nullptr, 10);
+  if (length > text_.size() - end - 1) throw std::runtime_error("a task's result is cut short");
+  std::string text = text_.substr(end + 1, length);
+  read_ = end + 1 + length;
+  return text;
+}
+
+}  // namespace modalcal
