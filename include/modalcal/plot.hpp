@@ -68,4 +68,14 @@ struct PointCloud {
 /// \throws as plot_panels, and std::invalid_argument if points and values differ in number.
 void plot_point_cloud(const std::string& path, const std::string& title, const PointCloud& cloud);
 
+/// Samples of several variables (rows: samples; columns: variables) as a scatter-plot matrix:
+/// each variable's histogram on the diagonal, each pair's scatter below it. Log axes for the
+/// variables flagged in `log_scale` (positive values only).
+struct SampleMatrix {
+  std::vector<std::string> names;  ///< one per column
+  std::vector<bool> log_scale;     ///< one per column, or empty for none
+  Matrix samples;
+};
+void plot_sample_matrix(const std::string& path, const std::string& title, const SampleMatrix& m);
+
 }  // namespace modalcal

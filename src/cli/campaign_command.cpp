@@ -1,6 +1,8 @@
 // `fullspace_calib campaign PROBLEM DATA...`: one calibration per measured data set (the same
 // model and start), each with its uncertainty, then the distribution of every parameter and
-// whether it varies from test to test beyond each calibration's own uncertainty.
+// whether it varies from test to test beyond each calibration's own uncertainty. The runs are
+// independent: across the ranks of an MPI job (WorkFarm), or in parts (--json each) merged later
+// (--merge). Either way the summary is made from the runs' JSON, so all three agree.
 
 #include <CLI/CLI.hpp>
 
@@ -14,7 +16,9 @@
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "cli/work_farm.hpp"
 #include "modalcal/output.hpp"
+#include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/uncertainty.hpp"
@@ -28,19 +32,10 @@ namespace fs = std::filesystem;
 struct CampaignArgs {
   std::string problem;
   std::vector<std::string> data;  // data files, or folders of them (*.yaml, in name order)
+  std::vector<std::string> merge;  // campaign JSON files whose runs to summarize
   std::string json;
+  std::string plot;
   double significance = 0.01;
-};
-
-/// One data set's calibration.
-struct Run {
-  std::string data;
-  bool ok = false;
-  bool input_error = false;
-  std::string reason;  // why it failed
-  Uncertainty uncertainty;
-  int iterations = 0;
-  std::string status;
 };
 
 /// The data files named: files as given, folders expanded to their .yaml files in name order.
@@ -72,28 +67,43 @@ Problem problem_with_data(const std::string& problem, const std::string& data, c
   return load_problem(file.string());
 }
 
-Run calibrate_one(const CampaignArgs& args, const std::string& data, const fs::path& folder, int k) {
-  Run run;
-  run.data = data;
+/// One data set's calibration, as its entry in the JSON's `runs`: ok with the parameters' values
+/// and Laplace uncertainty, or not ok with the reason (`input_error`: the data set is bad input).
+nlohmann::json calibrate_one(const CampaignArgs& args, const std::string& data, const fs::path& folder, int k) {
+  nlohmann::json run = {{"data", data}, {"ok", false}};
   try {
     const Problem problem = problem_with_data(args.problem, data, folder, k);
     Objective objective(problem);
     const ReducedSummary fit = minimize_reduced(objective, problem.initial_values(), ReducedOptions());
-    run.iterations = fit.iterations;
-    run.status = to_string(fit.termination);
     if (fit.final.size() != static_cast<Eigen::Index>(problem.parameters.size()))
       throw std::runtime_error("the calibration could not start: " + fit.message);
     UncertaintyOptions options;
     options.profiles = false;  // a campaign's many runs: the Laplace intervals
-    run.uncertainty = estimate_uncertainty(problem, fit.final, options);
-    run.ok = true;
+    const Uncertainty uncertainty = estimate_uncertainty(problem, fit.final, options);
+    run["ok"] = true;
+    run["status"] = to_string(fit.termination);
+    run["iterations"] = fit.iterations;
+    run["statistic"] = json_number(uncertainty.statistic);
+    run["parameters"] = nlohmann::json::array();
+    for (const ParameterUncertainty& pu : uncertainty.parameters)
+      run["parameters"].push_back({{"name", pu.name},
+                                   {"value", pu.value},
+                                   {"standard_error", json_number(pu.standard_error)},
+                                   {"scaled_standard_error", json_number(pu.scaled_standard_error)},
+                                   {"interval", {json_number(pu.lower), json_number(pu.upper)}}});
   } catch (const std::invalid_argument& e) {
-    run.input_error = true;
-    run.reason = e.what();
+    run["input_error"] = true;
+    run["reason"] = e.what();
   } catch (const std::exception& e) {
-    run.reason = e.what();
+    run["reason"] = e.what();
   }
   return run;
+}
+
+/// A number of a run's JSON: null (written for NaN and infinities) reads as +infinity, which is
+/// what a standard error without information is.
+double number_of(const nlohmann::json& value) {
+  return value.is_number() ? value.get<double>() : INFINITY;
 }
 
 double quantile(std::vector<double> v, double q) {
@@ -107,17 +117,17 @@ double quantile(std::vector<double> v, double q) {
 /// against their own standard errors (in the optimizer's variable, where the Laplace intervals
 /// are symmetric): Q = sum (x_i - x_w)^2 / s_i^2, chi-square with n - 1 degrees of freedom when
 /// every test measured the same structure.
-nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::vector<Run>& runs, double significance,
-                                 std::string* text) {
+nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::vector<nlohmann::json>& runs,
+                                 double significance, std::string* text) {
   const ParameterScaling scaling({problem.parameters[j]});
   std::vector<double> values, errors, x, sx;
-  for (const Run& r : runs) {
-    if (!r.ok) continue;
-    const ParameterUncertainty& pu = r.uncertainty.parameters[j];
-    values.push_back(pu.value);
-    errors.push_back(pu.standard_error);
-    x.push_back(scaling.to_scaled(Vector::Constant(1, pu.value))[0]);
-    sx.push_back(pu.scaled_standard_error);
+  for (const nlohmann::json& r : runs) {
+    if (!r.value("ok", false)) continue;
+    const nlohmann::json& pu = r.at("parameters").at(j);
+    values.push_back(pu.at("value").get<double>());
+    errors.push_back(number_of(pu.at("standard_error")));
+    x.push_back(scaling.to_scaled(Vector::Constant(1, values.back()))[0]);
+    sx.push_back(number_of(pu.at("scaled_standard_error")));
   }
   const size_t n = values.size();
   double mean = 0, sd = 0, rms_error = 0;
@@ -160,45 +170,104 @@ nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::ve
           {"varies_between_tests", varies}};
 }
 
-nlohmann::json run_json(const Run& r) {
-  nlohmann::json j = {{"data", r.data}, {"ok", r.ok}};
-  if (!r.ok) {
-    j["reason"] = r.reason;
-    return j;
+/// The runs of the campaign JSON files `merge` (in the order given), checked against the
+/// problem's parameters.
+std::vector<nlohmann::json> merged_runs(const Problem& problem, const std::vector<std::string>& merge) {
+  std::vector<nlohmann::json> runs;
+  for (const std::string& file : merge) {
+    nlohmann::json json;
+    try {
+      json = nlohmann::json::parse(std::ifstream(file));
+    } catch (const nlohmann::json::exception&) {
+      throw InputError("campaign --merge " + file + ": not a JSON file (the --json of a campaign)");
+    }
+    if (!json.is_object() || !json.contains("runs") || !json["runs"].is_array())
+      throw InputError("campaign --merge " + file + ": no `runs` list (is it the --json of a campaign?)");
+    for (const nlohmann::json& r : json["runs"]) {
+      if (!r.is_object() || !r.contains("ok") || !r.contains("data"))
+        throw InputError("campaign --merge " + file + ": a run without `data` and `ok`");
+      if (r["ok"] == true) {
+        const nlohmann::json& ps = r.at("parameters");
+        bool same = ps.is_array() && ps.size() == problem.parameters.size();
+        for (size_t j = 0; same && j < ps.size(); ++j)
+          same = ps[j].value("name", "") == problem.parameters[j].name && ps[j].contains("value") &&
+                 ps[j]["value"].is_number() && ps[j].contains("scaled_standard_error");
+        if (!same)
+          throw InputError("campaign --merge " + file + ": run '" + r["data"].dump().substr(0, 80) +
+                           "' calibrated other parameters than the problem's (another problem file?)");
+      }
+      runs.push_back(r);
+    }
   }
-  j["status"] = r.status;
-  j["iterations"] = r.iterations;
-  j["statistic"] = r.uncertainty.statistic;
-  j["parameters"] = nlohmann::json::array();
-  for (const ParameterUncertainty& pu : r.uncertainty.parameters)
-    j["parameters"].push_back({{"name", pu.name},
-                               {"value", pu.value},
-                               {"standard_error", json_number(pu.standard_error)},
-                               {"interval", {json_number(pu.lower), json_number(pu.upper)}}});
-  return j;
+  return runs;
+}
+
+void print_run(const nlohmann::json& r) {
+  if (r["ok"] == true)
+    std::printf("%-40s %s after %d iterations, chi-square %.4g\n", r["data"].get<std::string>().c_str(),
+                r["status"].get<std::string>().c_str(), r["iterations"].get<int>(), r["statistic"].is_number() ? r["statistic"].get<double>() : NAN);
+  else
+    std::printf("%-40s FAILED, skipped: %s\n", r["data"].get<std::string>().c_str(),
+                r["reason"].get<std::string>().c_str());
+  std::fflush(stdout);
+}
+
+/// Every data set calibrated, across the farm's ranks, in input order.
+std::vector<nlohmann::json> calibrate_all(const CampaignArgs& args, const std::vector<std::string>& files) {
+  WorkFarm& farm = WorkFarm::join();
+  if (farm.size() > 1)
+    std::printf("%zu data sets across %d MPI ranks, rank 0 handing them out\n", files.size(), farm.size());
+  const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
+  fs::create_directories(folder);
+  const std::vector<std::string> results = farm.map(
+      files.size(), [&](size_t k) { return calibrate_one(args, files[k], folder, static_cast<int>(k)).dump(); },
+      [](size_t, const std::string& r) { print_run(nlohmann::json::parse(r)); });
+  fs::remove_all(folder);
+  std::vector<nlohmann::json> runs;
+  for (const std::string& r : results) runs.push_back(nlohmann::json::parse(r));
+  return runs;
+}
+
+/// The calibrated values of the usable runs as a scatter-plot matrix.
+void plot_runs(const std::string& path, const Problem& problem, const std::vector<nlohmann::json>& runs) {
+  SampleMatrix m;
+  for (const Parameter& p : problem.parameters) {
+    m.names.push_back(p.name);
+    m.log_scale.push_back(p.scaling == Scaling::Log);
+  }
+  std::vector<const nlohmann::json*> usable;
+  for (const nlohmann::json& r : runs)
+    if (r["ok"] == true) usable.push_back(&r);
+  m.samples.resize(static_cast<Eigen::Index>(usable.size()), static_cast<Eigen::Index>(m.names.size()));
+  for (size_t i = 0; i < usable.size(); ++i)
+    for (size_t j = 0; j < m.names.size(); ++j)
+      m.samples(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) =
+          (*usable[i])["parameters"][j]["value"].get<double>();
+  plot_sample_matrix(path, "campaign: " + std::to_string(usable.size()) + " calibrations", m);
 }
 
 int run_campaign(const CampaignArgs& args) {
   const Problem problem = load_problem(args.problem);
   require_parameters(problem);
+  if (args.data.empty() && args.merge.empty())
+    throw InputError("campaign: no measured data sets to calibrate (or --merge the JSON of earlier parts)");
+  if (!args.data.empty() && !args.merge.empty())
+    throw InputError("campaign: measured data sets and --merge together; calibrate the data sets, then merge");
   const std::vector<std::string> files = data_files(args.data);
   std::vector<std::string> inputs = problem.source_files;
   for (const std::string& f : files) inputs.push_back(fs::absolute(f).string());
+  for (const std::string& f : args.merge) inputs.push_back(fs::absolute(f).string());
   if (!args.json.empty()) check_output_path(args.json, inputs);
-  const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
-  fs::create_directories(folder);
-  std::vector<Run> runs;
-  for (size_t k = 0; k < files.size(); ++k) {
-    runs.push_back(calibrate_one(args, files[k], folder, static_cast<int>(k)));
-    const Run& r = runs.back();
-    if (r.ok)
-      std::printf("%-40s %s after %d iterations, chi-square %.4g\n", r.data.c_str(), r.status.c_str(), r.iterations,
-                  r.uncertainty.statistic);
-    else
-      std::printf("%-40s FAILED, skipped: %s\n", r.data.c_str(), r.reason.c_str());
+  if (!args.plot.empty()) check_output_path(args.plot, inputs);
+  std::vector<nlohmann::json> runs;
+  if (args.merge.empty()) {
+    runs = calibrate_all(args, files);
+  } else {
+    runs = merged_runs(problem, args.merge);
+    for (const nlohmann::json& r : runs) print_run(r);
   }
-  fs::remove_all(folder);
-  const long usable = std::count_if(runs.begin(), runs.end(), [](const Run& r) { return r.ok; });
+  if (!WorkFarm::join().is_root()) return 0;  // rank 0 reports
+  const long usable = std::count_if(runs.begin(), runs.end(), [](const nlohmann::json& r) { return r["ok"] == true; });
   std::string text;
   char line[320];
   std::snprintf(line, sizeof line, "\n%ld of %zu data sets calibrated; every parameter over them:\n", usable, runs.size());
@@ -217,13 +286,13 @@ int run_campaign(const CampaignArgs& args) {
                 args.significance);
   text += line;
   std::fputs(text.c_str(), stdout);
-  if (!args.json.empty()) {
-    nlohmann::json json = {{"problem", args.problem}, {"runs", nlohmann::json::array()}, {"summary", summary}};
-    for (const Run& r : runs) json["runs"].push_back(run_json(r));
-    write_json(args.json, json, problem);
-  }
+  if (!args.json.empty())
+    write_json(args.json, {{"problem", args.problem}, {"runs", runs}, {"summary", summary}}, problem);
+  if (!args.plot.empty() && usable > 0) plot_runs(args.plot, problem, runs);
   if (usable > 0) return 0;
-  const bool all_input = std::all_of(runs.begin(), runs.end(), [](const Run& r) { return r.input_error; });
+  const bool all_input = std::all_of(runs.begin(), runs.end(), [](const nlohmann::json& r) {
+    return r.value("input_error", false);
+  });
   std::fprintf(stderr, "campaign: no data set could be calibrated\n");
   return all_input ? 2 : 1;
 }
@@ -240,9 +309,14 @@ void register_campaign_command(CLI::App& app, int* exit_code) {
   cmd->add_option("data", args->data,
                   "measured data files (as synth writes them, or as measured: file: reads), or folders of .yaml data "
                   "files")
-      ->required()
       ->check(CLI::ExistingPath);
+  cmd->add_option("--merge", args->merge,
+                  "instead of data: the --json files of campaigns run in parts (e.g. one per data set, as a batch "
+                  "array job); their runs are summarized in the order given")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--json", args->json, "write every run and the summary as JSON to this file");
+  cmd->add_option("--plot", args->plot,
+                  "draw the calibrated values (.png or .svg): each parameter's histogram and every pair's scatter");
   cmd->add_option("--significance", args->significance,
                   "level of the test that a parameter varies between tests (default 0.01)")
       ->check(CLI::Range(1e-6, 0.5));

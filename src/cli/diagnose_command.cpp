@@ -12,6 +12,7 @@
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "cli/work_farm.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
@@ -332,6 +333,7 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
 }
 
 int run_diagnose(const DiagnoseArgs& args) {
+  WorkFarm& farm = WorkFarm::join();  // in an MPI job every rank runs the diagnosis; the refits are shared
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   require_parameters(problem);
@@ -349,7 +351,8 @@ int run_diagnose(const DiagnoseArgs& args) {
   options.max_steps = args.max_steps;
   options.candidates.region_elements = args.region_size;
   options.backward = !args.no_backward;
-  if (!args.quiet) {
+  options.ranking.task_map = farm.task_map();
+  if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
     };
@@ -386,7 +389,9 @@ int run_diagnose(const DiagnoseArgs& args) {
   } else if (args.mesh_check > 0) {
     std::printf("no discretization estimate: the mesh comes from a file, which cannot be refined here\n");
   }
+  if (farm.size() > 1) std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
   const Diagnosis d = diagnose(problem, start, options);
+  if (!farm.is_root()) return 0;  // rank 0 reports
   std::fputs(format_diagnosis(problem, d).c_str(), stdout);
   const std::string hidden = hidden_effect_text(problem);
   if (!hidden.empty()) {

@@ -20,6 +20,7 @@
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "cli/work_farm.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
@@ -167,14 +168,74 @@ std::vector<Vector> study_starts(const FullVsReducedArgs& args, const Problem& p
   return starts;
 }
 
-// Every (start, method) run, up to `jobs` at a time, each child with its own report file;
-// runs[method][start], printed as they finish.
+struct Task {
+  size_t start, method;
+  std::string report;
+};
+
+void print_run(const FullVsReducedArgs& args, const Task& t, const Run& r) {
+  std::printf("start %2zu %-15s %-9s %-20s its %3d+%-3d error %.2e  %.2f s  %.0f MB\n", t.start,
+              args.methods[t.method].c_str(), r.success ? "success" : "failure", r.status.c_str(), r.extra_iterations,
+              r.iterations, r.error, r.seconds, r.peak_mb);
+  std::fflush(stdout);
+}
+
+// A run as it travels between the ranks of an MPI job (WorkFarm), and back.
+std::string run_text(const Run& r) {
+  nlohmann::json j = {{"ok", r.ok},
+                      {"success", r.success},
+                      {"status", r.status},
+                      {"numbers", {r.iterations, r.extra_iterations, r.forward_solves, r.kkt_solves}},
+                      {"seconds", r.seconds},
+                      {"peak_mb", r.peak_mb},
+                      {"order", json_number(r.order)},
+                      {"error", json_number(r.error)},
+                      {"objective", r.objective},
+                      {"gradient", r.gradient}};
+  return j.dump();
+}
+Run run_of(const std::string& text) {
+  const nlohmann::json j = nlohmann::json::parse(text);
+  Run r;
+  r.ok = j["ok"];
+  r.success = j["success"];
+  r.status = j["status"];
+  r.iterations = j["numbers"][0];
+  r.extra_iterations = j["numbers"][1];
+  r.forward_solves = j["numbers"][2];
+  r.kkt_solves = j["numbers"][3];
+  r.seconds = j["seconds"];
+  r.peak_mb = j["peak_mb"];
+  r.order = j["order"].is_number() ? j["order"].get<double>() : NAN;
+  r.error = j["error"].is_number() ? j["error"].get<double>() : INFINITY;
+  r.objective = j["objective"].get<std::vector<double>>();
+  r.gradient = j["gradient"].get<std::vector<double>>();
+  return r;
+}
+
+// Every (start, method) run of an MPI job's share: one child at a time on each rank.
+std::vector<std::vector<Run>> run_across_ranks(const FullVsReducedArgs& args, const Problem& problem,
+                                               const std::vector<Vector>& starts, const std::vector<Task>& tasks) {
+  const std::vector<std::string> results = WorkFarm::join().map(
+      tasks.size(),
+      [&](size_t k) {
+        const Task& t = tasks[k];
+        const pid_t pid = start_isolated(args, problem, args.methods[t.method], starts[t.start], t.report);
+        int status = 0;
+        struct rusage usage {};
+        if (wait4(pid, &status, 0, &usage) < 0) throw std::runtime_error("wait4() failed while a study run was going");
+        return run_text(read_report(args, problem, args.methods[t.method], t.report, status, usage));
+      },
+      [&](size_t k, const std::string& text) { print_run(args, tasks[k], run_of(text)); });
+  std::vector<std::vector<Run>> runs(args.methods.size(), std::vector<Run>(starts.size()));
+  for (size_t k = 0; k < tasks.size(); ++k) runs[tasks[k].method][tasks[k].start] = run_of(results[k]);
+  return runs;
+}
+
+// Every (start, method) run, up to `jobs` at a time (or across the ranks of an MPI job), each
+// child with its own report file; runs[method][start], printed as they finish.
 std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Problem& problem,
                                       const std::vector<Vector>& starts) {
-  struct Task {
-    size_t start, method;
-    std::string report;
-  };
   std::vector<Task> tasks;
   for (size_t s = 0; s < starts.size(); ++s)
     for (size_t m = 0; m < args.methods.size(); ++m) {
@@ -184,6 +245,7 @@ std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Probl
                            .string()});
       check_not_input(tasks.back().report, problem.source_files);  // each is removed before its run
     }
+  if (WorkFarm::join().size() > 1) return run_across_ranks(args, problem, starts, tasks);
   std::vector<std::vector<Run>> runs(args.methods.size(), std::vector<Run>(starts.size()));
   std::map<pid_t, size_t> running;  // child -> task
   size_t next = 0;
@@ -203,10 +265,7 @@ std::vector<std::vector<Run>> run_all(const FullVsReducedArgs& args, const Probl
     running.erase(child);
     const Run r = read_report(args, problem, args.methods[t.method], t.report, status, usage);
     runs[t.method][t.start] = r;
-    std::printf("start %2zu %-15s %-9s %-20s its %3d+%-3d error %.2e  %.2f s  %.0f MB\n", t.start,
-                args.methods[t.method].c_str(), r.success ? "success" : "failure", r.status.c_str(),
-                r.extra_iterations, r.iterations, r.error, r.seconds, r.peak_mb);
-    std::fflush(stdout);
+    print_run(args, t, r);
   }
   return runs;
 }
@@ -282,7 +341,10 @@ nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
   std::printf("success: right modes and every parameter within %.0e of the truth; iterations: Ipopt's for "
               "fullspace (+ its reduced globalization), medians over the runs\n",
               args.success_tolerance);
-  if (args.jobs > 1)
+  if (WorkFarm::join().size() > 1)
+    std::printf("%d MPI ranks, rank 0 handing out the runs: the times include waiting for shared cores\n",
+                WorkFarm::join().size());
+  else if (args.jobs > 1)
     std::printf("%d runs at a time: the times include waiting for the shared cores\n", args.jobs);
   const std::string plot_path = (std::filesystem::path(args.out) / "full_vs_reduced.png").string();
   try {
@@ -296,6 +358,7 @@ nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
 }
 
 int run_full_vs_reduced(const FullVsReducedArgs& args) {
+  const WorkFarm& farm = WorkFarm::join();  // in an MPI job, the runs are shared among the ranks
   const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   if (!problem.has_truth())
@@ -307,6 +370,7 @@ int run_full_vs_reduced(const FullVsReducedArgs& args) {
   for (const std::string& m : args.methods) std::printf(" %s", m.c_str());
   std::printf("\n");
   const std::vector<std::vector<Run>> runs = run_all(args, problem, starts);
+  if (!farm.is_root()) return 0;  // rank 0 reports
   const nlohmann::json summary = summarize(args, problem, runs);
   write_json(args.json,
              {{"problem", problem.path}, {"seed", args.seed}, {"methods", summary}, {"runs", runs_json(args, starts, runs)}},

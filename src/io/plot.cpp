@@ -181,4 +181,57 @@ void plot_bars(const std::string& path, const std::string& title, const BarChart
   });
 }
 
+void plot_sample_matrix(const std::string& path, const std::string& title, const SampleMatrix& m) {
+  const Eigen::Index n = m.samples.cols();
+  if (static_cast<Eigen::Index>(m.names.size()) != n || (!m.log_scale.empty() && m.log_scale.size() != m.names.size()))
+    throw std::invalid_argument("plot '" + path + "': " + std::to_string(m.names.size()) + " names for " +
+                                std::to_string(n) + " variables");
+  const auto logarithmic = [&](Eigen::Index j) {
+    return !m.log_scale.empty() && m.log_scale[static_cast<size_t>(j)] && (m.samples.col(j).array() > 0).all();
+  };
+  render(path, 60 + 240 * static_cast<int>(n), 40 + 220 * static_cast<int>(n), [&](std::ostream& script,
+                                                                                   const fs::path& work) {
+    const fs::path data = work / "samples.dat";
+    std::ofstream out(data);
+    out.precision(12);
+    for (Eigen::Index i = 0; i < m.samples.rows(); ++i) {
+      for (Eigen::Index j = 0; j < n; ++j) out << (j ? " " : "") << m.samples(i, j);
+      out << "\n";
+    }
+    script << "set multiplot layout " << n << "," << n << " title " << quoted(title) << "\n";
+    script << "unset key\nset tics font 'sans,7'\nset format x '%.3g'\nset format y '%.3g'\n";
+    script << "set style fill solid 0.6 border -1\n";
+    for (Eigen::Index row = 0; row < n; ++row)
+      for (Eigen::Index col = 0; col < n; ++col) {
+        if (col > row) {  // above the diagonal: nothing, the pair is drawn below it
+          script << "set multiplot next\n";
+          continue;
+        }
+        script << "unset logscale\nset xlabel " << quoted(row == n - 1 ? m.names[static_cast<size_t>(col)] : "")
+               << "\nset ylabel " << quoted(col == 0 ? (row == col ? "count" : m.names[static_cast<size_t>(row)]) : "")
+               << "\n";
+        const std::string x = "$" + std::to_string(col + 1);
+        if (col == row) {
+          // A histogram of about sqrt(samples) bins, in the variable or its log10.
+          const bool lg = logarithmic(col);
+          const Vector v = lg ? Vector(m.samples.col(col).array().log10()) : Vector(m.samples.col(col));
+          const double width = std::max((v.maxCoeff() - v.minCoeff()) /
+                                            std::max(3.0, std::ceil(std::sqrt(static_cast<double>(v.size())))),
+                                        1e-6 * std::max(1.0, std::abs(v.maxCoeff())));
+          const std::string value = lg ? "log10(" + x + ")" : x;
+          script << "set xlabel " << quoted(row == n - 1 ? m.names[static_cast<size_t>(col)] + (lg ? " (log10)" : "") : "")
+                 << "\nset boxwidth " << 0.9 * width << "\nplot " << quoted(data.string()) << " using ("
+                 << width << "*floor(" << value << "/" << width << ")+" << 0.5 * width
+                 << "):(1.0) smooth frequency with boxes lc rgb '#3182bd'\n";
+        } else {
+          if (logarithmic(col)) script << "set logscale x\n";
+          if (logarithmic(row)) script << "set logscale y\n";
+          script << "plot " << quoted(data.string()) << " using " << col + 1 << ":" << row + 1
+                 << " with points pt 7 ps 0.6 lc rgb '#3182bd'\n";
+        }
+      }
+    script << "unset multiplot\n";
+  });
+}
+
 }  // namespace modalcal

@@ -1,0 +1,50 @@
+#pragma once
+// Independent calibrations spread over the processes of an MPI job (`mpirun -np N fullspace_calib
+// campaign|study|diagnose ...`), or run in turn by a process alone.
+//
+// Every process runs the same command on the same input (SPMD) and reaches the same maps in the
+// same order. In a map, rank 0 only hands out work: it gives the next index to whichever process
+// asks (calibrations differ in length), collects each result, and at the end sends all of them,
+// in index order, to every process, which then goes on as one. So the results, and the output
+// rank 0 alone writes, are the same for any number of processes. Processes other than rank 0 write
+// nothing to the standard output. Waiting processes poll with short sleeps instead of spinning,
+// so that an MPI job may have more processes than cores.
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "modalcal/task_map.hpp"
+
+namespace modalcal::cli {
+
+class WorkFarm {
+ public:
+  /// The farm of this process: the MPI job's when the program was started by an MPI launcher
+  /// (and built with MPI), this process alone otherwise. The first call joins the job (MPI_Init),
+  /// silences the standard output of every rank but 0, and arranges MPI_Finalize at exit; with
+  /// several ranks, each uses one BLAS thread unless OPENBLAS_NUM_THREADS says otherwise.
+  static WorkFarm& join();
+
+  int rank() const { return rank_; }
+  int size() const { return size_; }
+  bool is_root() const { return rank_ == 0; }
+
+  /// Runs work(i) for i in [0, n) and returns every result in index order, on every rank.
+  /// `on_result(i, result)`, on rank 0 only, sees each result in index order as soon as every
+  /// earlier one is in (progress lines). An exception from work(i) on any rank is rethrown on every
+  /// rank (std::invalid_argument stays one, any other becomes std::runtime_error).
+  std::vector<std::string> map(size_t n, const std::function<std::string(size_t)>& work,
+                               const std::function<void(size_t, const std::string&)>& on_result = {});
+
+  /// map() as a TaskMap for the library (the diagnosis's refits).
+  TaskMap task_map();
+
+ private:
+  WorkFarm(int rank, int size) : rank_(rank), size_(size) {}
+  std::vector<std::string> map_alone(size_t n, const std::function<std::string(size_t)>& work,
+                                     const std::function<void(size_t, const std::string&)>& on_result);
+  int rank_ = 0, size_ = 1;
+};
+
+}  // namespace modalcal::cli
