@@ -161,6 +161,8 @@ class Objective {
  public:
   /// \throws std::invalid_argument for invalid options, or a problem without measured modes.
   explicit Objective(const Problem& problem, ObjectiveOptions options = {});
+  /// The objective keeps a reference to its problem: a temporary would dangle.
+  explicit Objective(Problem&& problem, ObjectiveOptions options = {}) = delete;
   ~Objective();
   Objective(const Objective&) = delete;
   Objective& operator=(const Objective&) = delete;
