@@ -184,6 +184,7 @@ class Objective {
 
  private:
   struct Workspace;
+  class Evaluator;  // one evaluation's steps (objective.cpp)
   void add_mode_hessian(const Vector& p, int i, double lambda, const Vector& u, const Matrix& X, const Matrix& dU,
                         const Vector& dlambda, const Vector& m, const Vector& Ju, const Vector& w0, Matrix* H) const;
   const Problem& problem_;

@@ -174,338 +174,432 @@ void Objective::require_parameters(const Vector& p, const std::string& caller) c
                                 std::to_string(num_parameters()) + " parameters");
 }
 
+/// One evaluation's steps, in order: the forward solve, the pairing, the residuals and value, then
+/// on request the adjoint gradient and the Jacobian (sensor adjoints or eigenvector sensitivities)
+/// with the Hessian. Each step that can fail marks the evaluation failed with its reason and
+/// returns false; the evaluation then goes no further.
+class Objective::Evaluator {
+ public:
+  Evaluator(Objective& objective, const Vector& p, Evaluation* e)
+      : o_(objective), problem_(objective.problem_), ws_(*objective.workspace_), p_(p), e_(*e) {}
+
+  bool forward_solve();
+  bool pair_modes();
+  void residuals_and_value();
+  void central_difference_gradient();
+  bool gradient();
+  bool sensor_adjoint_jacobian();
+  bool sensitivities(Need need);
+
+ private:
+  bool pair_by_rules(std::vector<bool>* taken);
+  void pair_by_mac(const std::vector<bool>& taken);
+  const detail::DeflationBasis& deflation_basis();
+  std::optional<Matrix> deflated_solve(const char* what, const std::vector<int>& own_columns, const Matrix& B);
+  int num_measured() const { return static_cast<int>(problem_.measured.size()); }
+  int num_model() const { return static_cast<int>(e_.modal.eigenvalues.size()); }
+  int num_sensors() const { return static_cast<int>(problem_.sensors.size()); }
+  int rigid() const { return static_cast<int>(e_.modal.rigid_eigenvalues.size()); }
+  const Matrix& U() const { return e_.modal.modes; }
+  const Vector& lambda() const { return e_.modal.eigenvalues; }
+
+  Objective& o_;
+  const Problem& problem_;
+  Workspace& ws_;
+  const Vector& p_;
+  Evaluation& e_;
+  std::vector<int> model_of_;  // the model mode paired with each measured mode
+  std::vector<int> mac_rows_;  // the measured modes paired by MAC
+  Matrix mac_table_;           // MAC of each measured shape with each model mode (-1: no shape)
+  Vector x_, x0_;              // the regularization's variables at p and at the start
+  detail::DeflationBasis basis_;
+  std::vector<Vector> dlambda_, umu_;  // per measured mode: dlambda/dp and u^T M_j u
+  std::vector<int> shape_modes_;       // measured modes with a shape term, in order
+  std::vector<Vector> shape_gradient_; // J_u of each measured mode's shape term
+  Matrix adjoint_solution_;            // one column per shape mode
+};
+
+bool Objective::Evaluator::forward_solve() {
+  o_.system_->assemble(p_, &ws_.K, &ws_.M);
+  e_.modal = o_.solver_->solve(ws_.K, ws_.M);
+  ++o_.forward_solves_;
+  if (e_.modal.status == EigenStatus::Successful) return true;
+  e_.message = "forward solve failed: " + o_.system_->failure_message(p_, e_.modal.message);
+  return false;
+}
+
+// Fixed rules first (a model index, or the n-th mode of a family), then by MAC (largest total
+// MAC, one-to-one); with eigenvalues_in_frequency_order the MAC-paired set is assigned in
+// frequency order.
+bool Objective::Evaluator::pair_modes() {
+  model_of_.assign(num_measured(), -1);
+  std::vector<bool> taken(num_model(), false);
+  if (!pair_by_rules(&taken)) return false;
+  mac_table_ = Matrix::Constant(num_measured(), num_model(), -1.0);
+  for (int i = 0; i < num_measured(); ++i) {
+    const MeasuredMode& m = problem_.measured[i];
+    if (m.shape.size() == 0) continue;
+    for (int k = 0; k < num_model(); ++k) mac_table_(i, k) = mac(ws_.sensors * U().col(k), m.shape);
+  }
+  pair_by_mac(taken);
+  for (int i = 0; i < num_measured(); ++i)
+    if (model_of_[i] < 0) {
+      e_.message = describe_measured(problem_.measured[i], i) + ": no model mode left to pair with";
+      return false;
+    }
+  if (o_.options_.eigenvalues_in_frequency_order && mac_rows_.size() > 1) {
+    // The shapes chose the set; frequency order assigns it (see the option's comment).
+    std::vector<int> set;
+    for (int i : mac_rows_) set.push_back(model_of_[i]);
+    std::sort(set.begin(), set.end(), [&](int a, int b) { return lambda()[a] < lambda()[b]; });
+    std::vector<int> rows = mac_rows_;
+    std::stable_sort(rows.begin(), rows.end(), [&](int a, int b) {
+      return problem_.measured[a].frequency_hz < problem_.measured[b].frequency_hz;
+    });
+    for (size_t a = 0; a < rows.size(); ++a) model_of_[rows[a]] = set[a];
+  }
+  return true;
+}
+
+bool Objective::Evaluator::pair_by_rules(std::vector<bool>* taken) {
+  std::vector<ModeDescription> described;
+  for (int i = 0; i < num_measured(); ++i) {
+    const PairingRule& rule = problem_.measured[i].pairing;
+    int k = -1;
+    if (rule.kind == PairingRule::Kind::ModelIndex) {
+      k = rule.model_index - 1;
+    } else if (rule.kind == PairingRule::Kind::Family) {
+      if (described.empty()) described = describe_modes(*o_.system_, p_, ws_.M, e_.modal);
+      k = find_family_mode(described, rule.family, rule.family_index) - 1;
+      if (k < 0) {
+        e_.message = describe_measured(problem_.measured[i], i) + ": the lowest " + std::to_string(num_model()) +
+                     " model modes have fewer than " + std::to_string(rule.family_index) + " '" + rule.family +
+                     "' modes; raise options.num_modes or check the model";
+        return false;
+      }
+    } else {
+      continue;
+    }
+    if (k >= num_model() || (*taken)[k]) {
+      e_.message = describe_measured(problem_.measured[i], i) + ": model mode " + std::to_string(k + 1) +
+                   ((*taken)[k] ? " is already paired with another measured mode" : " was not computed");
+      return false;
+    }
+    model_of_[i] = k;
+    (*taken)[k] = true;
+  }
+  return true;
+}
+
+// The assignment with the largest total MAC among the modes left free.
+void Objective::Evaluator::pair_by_mac(const std::vector<bool>& taken) {
+  std::vector<int> free_columns;
+  for (int i = 0; i < num_measured(); ++i)
+    if (model_of_[i] < 0 && problem_.measured[i].pairing.kind == PairingRule::Kind::Mac) mac_rows_.push_back(i);
+  for (int k = 0; k < num_model(); ++k)
+    if (!taken[k]) free_columns.push_back(k);
+  if (mac_rows_.empty() || mac_rows_.size() > free_columns.size()) return;
+  // Sparse sensors can see two modes alike (on a test model, MAC 0.99999 with modes at 1.7 and
+  // 3.2 Hz): rounding must not decide between them, or J jumps wherever the tie flips and a line
+  // search stalls there. Each score loses kMacTieWeight |ln(lambda_k / lambda_m)|, so a tie
+  // goes to the nearer eigenvalue while a MAC difference of more than ~1e-3 still decides.
+  constexpr double kMacTieWeight = 1e-3;
+  Matrix score(mac_rows_.size(), free_columns.size());
+  for (size_t a = 0; a < mac_rows_.size(); ++a) {
+    const double target = eigenvalue_of_hz(problem_.measured[mac_rows_[a]].frequency_hz);
+    for (size_t b = 0; b < free_columns.size(); ++b) {
+      const double ratio = std::abs(lambda()[free_columns[b]]) / target;
+      score(a, b) = mac_table_(mac_rows_[a], free_columns[b]) - kMacTieWeight * std::abs(std::log(std::max(ratio, 1e-300)));
+    }
+  }
+  const std::vector<int> assigned = detail::maximize_assignment(score);
+  for (size_t a = 0; a < mac_rows_.size(); ++a) model_of_[mac_rows_[a]] = free_columns[assigned[a]];
+}
+
+void Objective::Evaluator::residuals_and_value() {
+  const ObjectiveOptions& options = o_.options_;
+  const int ns = num_sensors();
+  e_.residuals = Vector::Zero(o_.num_residuals_);
+  int row = 0;
+  for (int i = 0; i < num_measured(); ++i) {
+    const MeasuredMode& m = problem_.measured[i];
+    const int k = model_of_[i];
+    const double target = eigenvalue_of_hz(m.frequency_hz);
+    PairedMode pair;
+    pair.measured = i;
+    pair.model = k;
+    pair.measured_hz = m.frequency_hz;
+    pair.model_hz = frequency_hz(lambda()[k]);
+    pair.relative_error = (lambda()[k] - target) / target;
+    pair.mac = m.shape.size() ? mac_table_(i, k) : -1;
+    e_.pairs.push_back(pair);
+    const double r = eigenvalue_residual(lambda()[k], target, options.eigenvalue_misfit).r;
+    e_.residuals[row++] = std::sqrt(m.weight) * r;
+    e_.eigenvalue_term += 0.5 * m.weight * r * r;
+    for (int n : {k - 1, k + 1})
+      if (n >= 0 && n < num_model() && std::abs(lambda()[n] - lambda()[k]) < options.close_eigenvalue_tolerance * lambda()[k])
+        e_.warnings.push_back(describe_measured(m, i) + " is paired with model mode " + std::to_string(k + 1) +
+                              ", whose eigenvalue nearly repeats that of mode " + std::to_string(n + 1) +
+                              ": its derivatives are ill defined there");
+  }
+  for (int i = 0; i < num_measured(); ++i) {
+    const MeasuredMode& m = problem_.measured[i];
+    if (m.shape.size() == 0) continue;
+    const Vector y = ws_.sensors * U().col(model_of_[i]);
+    const Vector res = shape_residual(y, m.shape.normalized());
+    e_.residuals.segment(row, ns) = std::sqrt(m.shape_weight) * res;
+    e_.shape_term += 0.5 * m.shape_weight * res.squaredNorm();
+    row += ns;
+  }
+  x_ = o_.regularization_scaling_.to_scaled(p_);
+  x0_ = o_.regularization_scaling_.to_scaled(problem_.initial_values());
+  e_.regularization_term = 0.5 * options.regularization * (x_ - x0_).squaredNorm();
+  e_.value = e_.eigenvalue_term + e_.shape_term + e_.regularization_term;
+  e_.ok = true;
+}
+
+void Objective::Evaluator::central_difference_gradient() {
+  const int np = o_.num_parameters();
+  e_.gradient.resize(np);
+  for (int j = 0; j < np; ++j) {
+    const double h = o_.options_.difference_step * std::max(std::abs(p_[j]), 1e-300);
+    Vector plus = p_, minus = p_;
+    plus[j] += h;
+    minus[j] -= h;
+    const Evaluation ep = o_.evaluate(plus), em = o_.evaluate(minus);
+    if (!ep.ok || !em.ok) {
+      e_.ok = false;
+      e_.message = "finite-difference gradient: " + (ep.ok ? em.message : ep.message);
+      return;
+    }
+    e_.gradient[j] = (ep.value - em.value) / (2 * h);
+  }
+}
+
+// The deflation basis only for the linear solves (shape adjoints, sensitivities): its product
+// M U alone costs about 3 % of a forward solve, more than the whole eigenvalue-only gradient.
+const detail::DeflationBasis& Objective::Evaluator::deflation_basis() {
+  if (basis_.modes.size() == 0) {
+    basis_.modes.resize(U().rows(), rigid() + num_model());
+    basis_.modes << e_.modal.rigid_modes, U();
+    basis_.eigenvalues.resize(rigid() + num_model());
+    basis_.eigenvalues << e_.modal.rigid_eigenvalues, lambda();
+    basis_.mass_modes = ws_.M * basis_.modes;
+  }
+  return basis_;
+}
+
+// A deflated solve (K - lambda_own M) X = B, counted; on failure the evaluation is marked failed
+// with `what` and the solver's reason, and nullopt is returned.
+std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, const std::vector<int>& own_columns,
+                                                           const Matrix& B) {
+  auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
+  detail::DeflatedSolveResult solve = detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B,
+                                                             precondition, o_.options_.linear_tolerance,
+                                                             o_.options_.max_linear_iterations);
+  e_.linear_solves += solve.column_solves;
+  if (solve.converged) return std::move(solve.solution);
+  e_.ok = false;
+  e_.message = std::string(what) + ": " + solve.message;
+  return std::nullopt;
+}
+
+// The adjoint gradient; with Need::Jacobian or more also the eigenvalue rows of the Jacobian.
+bool Objective::Evaluator::gradient() {
+  const int n = num_measured();
+  e_.gradient = o_.options_.regularization * (x_ - x0_).cwiseQuotient(o_.regularization_scaling_.first_derivative(x_));
+  // Eigenvalue sensitivities of every paired mode: dlambda/dp_j = u^T (K_j - lambda M_j) u, all
+  // modes in one pass over the assembly terms instead of one pass per mode.
+  dlambda_.resize(n);
+  umu_.resize(n);
+  e_.adjoint = Matrix::Zero(U().rows(), n);
+  e_.adjoint_eta = Vector::Zero(n);
+  Matrix paired_modes(U().rows(), n);
+  for (int i = 0; i < n; ++i) paired_modes.col(i) = U().col(model_of_[i]);
+  Matrix mode_a, mode_b;
+  o_.system_->derivative_forms(p_, paired_modes, paired_modes, &mode_a, &mode_b);
+  const bool jacobian = e_.jacobian.size() > 0;
+  for (int i = 0; i < n; ++i) {
+    const int k = model_of_[i];
+    dlambda_[i] = mode_a.col(i) - lambda()[k] * mode_b.col(i);
+    umu_[i] = mode_b.col(i);
+    const MeasuredMode& m = problem_.measured[i];
+    const EigenvalueResidual r =
+        eigenvalue_residual(lambda()[k], eigenvalue_of_hz(m.frequency_hz), o_.options_.eigenvalue_misfit);
+    e_.gradient += m.weight * r.r * r.dr * dlambda_[i];
+    e_.adjoint.col(i) = m.weight * r.r * r.dr * U().col(k);  // J_lambda u
+    if (jacobian) e_.jacobian.row(i) = std::sqrt(m.weight) * r.dr * dlambda_[i].transpose();
+  }
+
+  // Shape terms: adjoint right-hand sides (M u u^T - I) J_u, one column per measured shape.
+  std::vector<int> own;
+  shape_gradient_.assign(n, Vector());
+  Matrix rhs(U().rows(), 0);
+  for (int i = 0; i < n; ++i) {
+    const MeasuredMode& m = problem_.measured[i];
+    if (m.shape.size() == 0 || m.shape_weight == 0) continue;
+    const Vector u = U().col(model_of_[i]);
+    const Vector y = ws_.sensors * u;
+    const Vector Ju = ws_.sensors.transpose() * detail::ShapeMisfit(m.shape, m.shape_weight).gradient(y);
+    shape_gradient_[i] = Ju;
+    rhs.conservativeResize(Eigen::NoChange, rhs.cols() + 1);
+    rhs.col(rhs.cols() - 1) = ws_.M * u * u.dot(Ju) - Ju;
+    shape_modes_.push_back(i);
+    own.push_back(rigid() + model_of_[i]);
+    // eta_i u^T M_j u with eta_i = -u^T J_u / 2.
+    e_.adjoint_eta[i] = -0.5 * u.dot(Ju);
+    e_.gradient += e_.adjoint_eta[i] * umu_[i];
+  }
+  adjoint_solution_.resize(U().rows(), 0);
+  if (shape_modes_.empty()) return true;
+  std::optional<Matrix> adjoint = deflated_solve("adjoint solve", own, rhs);
+  if (!adjoint) return false;
+  // w_s^T (K_j - lambda M_j) u for every shape at once.
+  Matrix shape_u(U().rows(), static_cast<Eigen::Index>(shape_modes_.size()));
+  for (size_t s = 0; s < shape_modes_.size(); ++s) shape_u.col(s) = U().col(model_of_[shape_modes_[s]]);
+  Matrix shape_a, shape_b;
+  o_.system_->derivative_forms(p_, *adjoint, shape_u, &shape_a, &shape_b);
+  for (size_t s = 0; s < shape_modes_.size(); ++s) {
+    const int k = model_of_[shape_modes_[s]];
+    e_.gradient += shape_a.col(s) - lambda()[k] * shape_b.col(s);
+    e_.adjoint.col(shape_modes_[s]) += adjoint->col(s);
+  }
+  adjoint_solution_ = std::move(*adjoint);
+  return true;
+}
+
+namespace {
+
+// The first Jacobian row of each measured mode's shape term (they follow the eigenvalue rows), or
+// -1 for a mode without one.
+std::vector<int> shape_rows(const Problem& problem) {
+  const int n = static_cast<int>(problem.measured.size());
+  const int ns = static_cast<int>(problem.sensors.size());
+  std::vector<int> first_row(n, -1);
+  for (int i = 0, r = n; i < n; ++i)
+    if (problem.measured[i].shape.size()) {
+      first_row[i] = r;
+      r += ns;
+    }
+  return first_row;
+}
+
+}  // namespace
+
+// The shape rows of the Jacobian from sensor adjoints: P du/dp_j = P x_j - (u^T M_j u / 2) P u,
+// and P x_j = P S b_j = Z^T b_j with Z = S P^T (S the deflated inverse, symmetric) and
+// b_j = -(K_j - lambda M_j) u + dlambda_j M u, whose second part Z^T M u vanishes (S M u = 0).
+// One solve per sensor reading instead of per parameter.
+bool Objective::Evaluator::sensor_adjoint_jacobian() {
+  const int np = o_.num_parameters();
+  const int ns = num_sensors();
+  const std::vector<int> first_row = shape_rows(problem_);
+  std::vector<int> rows_of, own_columns;
+  for (int i = 0; i < num_measured(); ++i)
+    if (problem_.measured[i].has_shape_term()) rows_of.push_back(i);
+  const Matrix sensor_columns = Matrix(ws_.sensors.transpose());
+  Matrix adjoint_rhs(U().rows(), static_cast<Eigen::Index>(rows_of.size()) * ns);
+  for (size_t a = 0; a < rows_of.size(); ++a) {
+    adjoint_rhs.middleCols(a * ns, ns) = sensor_columns;
+    own_columns.insert(own_columns.end(), ns, rigid() + model_of_[rows_of[a]]);
+  }
+  const std::optional<Matrix> sensor_solve = deflated_solve("sensor adjoint solve", own_columns, adjoint_rhs);
+  if (!sensor_solve) return false;
+  for (size_t a = 0; a < rows_of.size(); ++a) {
+    const int i = rows_of[a];
+    const MeasuredMode& m = problem_.measured[i];
+    const int k = model_of_[i];
+    const Vector y = ws_.sensors * U().col(k);
+    Matrix A, B;  // np x ns: z_s^T K_j u and z_s^T M_j u
+    o_.system_->derivative_forms(p_, sensor_solve->middleCols(a * ns, ns), U().col(k).replicate(1, ns), &A, &B);
+    const Matrix dy = -(A - lambda()[k] * B).transpose() - 0.5 * y * umu_[i].transpose();  // ns x np
+    for (int j = 0; j < np; ++j)
+      e_.jacobian.block(first_row[i], j, ns, 1) =
+          std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), dy.col(j));
+  }
+  return true;
+}
+
+// Eigenvector sensitivities du/dp_j = x_j - (u^T M_j u / 2) u with
+// (K - lambda M) x_j = -(K_j - lambda M_j) u + dlambda_j M u, x_j M-orthogonal to u: for the shape
+// rows of the Jacobian, and for every paired mode when the Hessian is wanted.
+bool Objective::Evaluator::sensitivities(Need need) {
+  const int np = o_.num_parameters();
+  const int ns = num_sensors();
+  const std::vector<int> first_row = shape_rows(problem_);
+  std::vector<int> modes_needed;
+  for (int i = 0; i < num_measured(); ++i)
+    if (need == Need::Hessian || problem_.measured[i].has_shape_term()) modes_needed.push_back(i);
+  Matrix sensitivity_rhs(U().rows(), static_cast<Eigen::Index>(modes_needed.size()) * np);
+  std::vector<int> own_columns;
+  for (size_t a = 0; a < modes_needed.size(); ++a) {
+    const int i = modes_needed[a];
+    const int k = model_of_[i];
+    const Vector Mu = ws_.M * U().col(k);
+    for (int j = 0; j < np; ++j) {
+      Vector dKu, dMu;
+      o_.system_->derivative_times(p_, j, U().col(k), &dKu, &dMu);
+      sensitivity_rhs.col(a * np + j) = -(dKu - lambda()[k] * dMu) + dlambda_[i][j] * Mu;
+      own_columns.push_back(rigid() + k);
+    }
+  }
+  const std::optional<Matrix> direct = deflated_solve("sensitivity solve", own_columns, sensitivity_rhs);
+  if (!direct) return false;
+  if (need == Need::Hessian) {
+    e_.hessian = Matrix::Zero(np, np);
+    // Regularization: R = alpha/2 |x_r(p) - x_r0|^2, dx/dp = 1/p'(x), d2x/dp2 = -p''(x)/p'(x)^3.
+    const ParameterScaling& scaling = o_.regularization_scaling_;
+    const Vector dp = scaling.first_derivative(x_), d2p = scaling.second_derivative(x_);
+    for (int j = 0; j < np; ++j)
+      e_.hessian(j, j) = o_.options_.regularization *
+                         (1 / (dp[j] * dp[j]) - (x_[j] - x0_[j]) * d2p[j] / (dp[j] * dp[j] * dp[j]));
+  }
+  for (size_t a = 0; a < modes_needed.size(); ++a) {
+    const int i = modes_needed[a];
+    const MeasuredMode& m = problem_.measured[i];
+    const int k = model_of_[i];
+    const Vector u = U().col(k);
+    const Matrix X = direct->middleCols(a * np, np);
+    Matrix dU = X;
+    for (int j = 0; j < np; ++j) dU.col(j) -= 0.5 * umu_[i][j] * u;
+    const bool has_shape = m.has_shape_term();
+    if (has_shape) {
+      const Vector y = ws_.sensors * u;
+      for (int j = 0; j < np; ++j)
+        e_.jacobian.block(first_row[i], j, ns, 1) =
+            std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), ws_.sensors * dU.col(j));
+    }
+    if (need != Need::Hessian) continue;
+    const auto shape = std::find(shape_modes_.begin(), shape_modes_.end(), i) - shape_modes_.begin();
+    o_.add_mode_hessian(p_, i, lambda()[k], u, X, dU, dlambda_[i], umu_[i], has_shape ? shape_gradient_[i] : Vector(),
+                        has_shape ? adjoint_solution_.col(shape) : Vector(), &e_.hessian);
+  }
+  return true;
+}
+
 Evaluation Objective::evaluate(const Vector& p, Need need) {
   Evaluation e;
   if (p.size() != num_parameters() || !p.allFinite()) {
     e.message = "parameter vector has wrong size or non-finite entries";
     return e;
   }
-  Workspace& ws = *workspace_;
-  system_->assemble(p, &ws.K, &ws.M);
-  e.modal = solver_->solve(ws.K, ws.M);
-  ++forward_solves_;
-  if (e.modal.status != EigenStatus::Successful) {
-    e.message = "forward solve failed: " + system_->failure_message(p, e.modal.message);
-    return e;
-  }
-  const Matrix& U = e.modal.modes;
-  const Vector& lambda = e.modal.eigenvalues;
-  const int num_model = static_cast<int>(lambda.size());
-
-  // --- Pairing: fixed rules first, then by MAC (largest total MAC, one-to-one).
-  const int num_measured = static_cast<int>(problem_.measured.size());
-  std::vector<int> model_of(num_measured, -1);
-  std::vector<bool> taken(num_model, false);
-  std::vector<ModeDescription> described;
-  for (int i = 0; i < num_measured; ++i) {
-    const PairingRule& rule = problem_.measured[i].pairing;
-    int k = -1;
-    if (rule.kind == PairingRule::Kind::ModelIndex) {
-      k = rule.model_index - 1;
-    } else if (rule.kind == PairingRule::Kind::Family) {
-      if (described.empty()) described = describe_modes(*system_, p, ws.M, e.modal);
-      k = find_family_mode(described, rule.family, rule.family_index) - 1;
-      if (k < 0) {
-        e.message = describe_measured(problem_.measured[i], i) + ": the lowest " + std::to_string(num_model) +
-                    " model modes have fewer than " + std::to_string(rule.family_index) + " '" + rule.family +
-                    "' modes; raise options.num_modes or check the model";
-        return e;
-      }
-    } else {
-      continue;
-    }
-    if (k >= num_model || taken[k]) {
-      e.message = describe_measured(problem_.measured[i], i) + ": model mode " + std::to_string(k + 1) +
-                  (taken[k] ? " is already paired with another measured mode" : " was not computed");
-      return e;
-    }
-    model_of[i] = k;
-    taken[k] = true;
-  }
-  Matrix mac_table = Matrix::Constant(num_measured, num_model, -1.0);
-  for (int i = 0; i < num_measured; ++i) {
-    const MeasuredMode& m = problem_.measured[i];
-    if (m.shape.size() == 0) continue;
-    for (int k = 0; k < num_model; ++k) mac_table(i, k) = mac(ws.sensors * U.col(k), m.shape);
-  }
-  // MAC-paired modes: the assignment with the largest total MAC among the modes left free.
-  std::vector<int> mac_rows, free_columns;
-  for (int i = 0; i < num_measured; ++i)
-    if (model_of[i] < 0 && problem_.measured[i].pairing.kind == PairingRule::Kind::Mac) mac_rows.push_back(i);
-  for (int k = 0; k < num_model; ++k)
-    if (!taken[k]) free_columns.push_back(k);
-  if (!mac_rows.empty() && mac_rows.size() <= free_columns.size()) {
-    // Sparse sensors can see two modes alike (on a test model, MAC 0.99999 with modes at 1.7 and
-    // 3.2 Hz): rounding must not decide between them, or J jumps wherever the tie flips and a line
-    // search stalls there. Each score loses kMacTieWeight |ln(lambda_k / lambda_m)|, so a tie
-    // goes to the nearer eigenvalue while a MAC difference of more than ~1e-3 still decides.
-    constexpr double kMacTieWeight = 1e-3;
-    Matrix score(mac_rows.size(), free_columns.size());
-    for (size_t a = 0; a < mac_rows.size(); ++a) {
-      const double target = eigenvalue_of_hz(problem_.measured[mac_rows[a]].frequency_hz);
-      for (size_t b = 0; b < free_columns.size(); ++b) {
-        const double ratio = std::abs(lambda[free_columns[b]]) / target;
-        score(a, b) = mac_table(mac_rows[a], free_columns[b]) - kMacTieWeight * std::abs(std::log(std::max(ratio, 1e-300)));
-      }
-    }
-    const std::vector<int> assigned = detail::maximize_assignment(score);
-    for (size_t a = 0; a < mac_rows.size(); ++a) model_of[mac_rows[a]] = free_columns[assigned[a]];
-  }
-  for (int i = 0; i < num_measured; ++i)
-    if (model_of[i] < 0) {
-      e.message = describe_measured(problem_.measured[i], i) + ": no model mode left to pair with";
-      return e;
-    }
-  if (options_.eigenvalues_in_frequency_order && mac_rows.size() > 1) {
-    // The shapes chose the set; frequency order assigns it (see the option's comment).
-    std::vector<int> set;
-    for (int i : mac_rows) set.push_back(model_of[i]);
-    std::sort(set.begin(), set.end(), [&](int a, int b) { return lambda[a] < lambda[b]; });
-    std::vector<int> rows = mac_rows;
-    std::stable_sort(rows.begin(), rows.end(), [&](int a, int b) {
-      return problem_.measured[a].frequency_hz < problem_.measured[b].frequency_hz;
-    });
-    for (size_t a = 0; a < rows.size(); ++a) model_of[rows[a]] = set[a];
-  }
-
-  // --- Residuals and value.
-  const int ns = static_cast<int>(problem_.sensors.size());
-  e.residuals = Vector::Zero(num_residuals_);
-  int row = 0;
-  for (int i = 0; i < num_measured; ++i) {
-    const MeasuredMode& m = problem_.measured[i];
-    const int k = model_of[i];
-    const double target = eigenvalue_of_hz(m.frequency_hz);
-    PairedMode pair;
-    pair.measured = i;
-    pair.model = k;
-    pair.measured_hz = m.frequency_hz;
-    pair.model_hz = frequency_hz(lambda[k]);
-    pair.relative_error = (lambda[k] - target) / target;
-    pair.mac = m.shape.size() ? mac_table(i, k) : -1;
-    e.pairs.push_back(pair);
-    const double r = eigenvalue_residual(lambda[k], target, options_.eigenvalue_misfit).r;
-    e.residuals[row++] = std::sqrt(m.weight) * r;
-    e.eigenvalue_term += 0.5 * m.weight * r * r;
-    for (int n : {k - 1, k + 1})
-      if (n >= 0 && n < num_model && std::abs(lambda[n] - lambda[k]) < options_.close_eigenvalue_tolerance * lambda[k])
-        e.warnings.push_back(describe_measured(m, i) + " is paired with model mode " + std::to_string(k + 1) +
-                             ", whose eigenvalue nearly repeats that of mode " + std::to_string(n + 1) +
-                             ": its derivatives are ill defined there");
-  }
-  for (int i = 0; i < num_measured; ++i) {
-    const MeasuredMode& m = problem_.measured[i];
-    if (m.shape.size() == 0) continue;
-    const Vector y = ws.sensors * U.col(model_of[i]);
-    const Vector res = shape_residual(y, m.shape.normalized());
-    e.residuals.segment(row, ns) = std::sqrt(m.shape_weight) * res;
-    e.shape_term += 0.5 * m.shape_weight * res.squaredNorm();
-    row += ns;
-  }
-  const Vector x = regularization_scaling_.to_scaled(p);
-  const Vector x0 = regularization_scaling_.to_scaled(problem_.initial_values());
-  e.regularization_term = 0.5 * options_.regularization * (x - x0).squaredNorm();
-  e.value = e.eigenvalue_term + e.shape_term + e.regularization_term;
-  e.ok = true;
+  Evaluator run(*this, p, &e);
+  if (!run.forward_solve() || !run.pair_modes()) return e;
+  run.residuals_and_value();
   if (need == Need::Value) return e;
-
-  // --- Gradient (adjoint) and, on request, the residual Jacobian (sensitivities or sensor adjoint).
-  const int np = num_parameters();
   if (need == Need::Gradient && options_.gradient == ObjectiveOptions::Gradient::CentralDifferences) {
-    e.gradient.resize(np);
-    for (int j = 0; j < np; ++j) {
-      const double h = options_.difference_step * std::max(std::abs(p[j]), 1e-300);
-      Vector plus = p, minus = p;
-      plus[j] += h;
-      minus[j] -= h;
-      const Evaluation ep = evaluate(plus), em = evaluate(minus);
-      if (!ep.ok || !em.ok) {
-        e.ok = false;
-        e.message = "finite-difference gradient: " + (ep.ok ? em.message : ep.message);
-        return e;
-      }
-      e.gradient[j] = (ep.value - em.value) / (2 * h);
-    }
+    run.central_difference_gradient();
     return e;
   }
-  e.gradient = options_.regularization * (x - x0).cwiseQuotient(regularization_scaling_.first_derivative(x));
-  if (need >= Need::Jacobian) e.jacobian = Matrix::Zero(num_residuals_, np);
-
-  // The deflation basis only for the linear solves (shape adjoints, sensitivities): its product
-  // M U alone costs about 3 % of a forward solve, more than the whole eigenvalue-only gradient.
-  const int nr = static_cast<int>(e.modal.rigid_eigenvalues.size());
-  detail::DeflationBasis basis;
-  auto deflation_basis = [&]() -> const detail::DeflationBasis& {
-    if (basis.modes.size() == 0) {
-      basis.modes.resize(U.rows(), nr + num_model);
-      basis.modes << e.modal.rigid_modes, U;
-      basis.eigenvalues.resize(nr + num_model);
-      basis.eigenvalues << e.modal.rigid_eigenvalues, lambda;
-      basis.mass_modes = ws.M * basis.modes;
-    }
-    return basis;
-  };
-  auto precondition = [&](const Matrix& B) { return solver_->solve_factorized(B); };
-  // A deflated solve (K - lambda_own M) X = B, counted; on failure the evaluation is marked
-  // failed with `what` and the solver's reason, and nullopt is returned.
-  auto deflated_solve = [&](const char* what, const std::vector<int>& own_columns,
-                            const Matrix& B) -> std::optional<Matrix> {
-    detail::DeflatedSolveResult solve =
-        detail::solve_deflated(ws.K, ws.M, deflation_basis(), own_columns, B, precondition,
-                               options_.linear_tolerance, options_.max_linear_iterations);
-    e.linear_solves += solve.column_solves;
-    if (solve.converged) return std::move(solve.solution);
-    e.ok = false;
-    e.message = std::string(what) + ": " + solve.message;
-    return std::nullopt;
-  };
-
-  // Eigenvalue sensitivities of every paired mode: dlambda/dp_j = u^T (K_j - lambda M_j) u, all
-  // modes in one pass over the assembly terms instead of one pass per mode.
-  std::vector<Vector> dlambda(num_measured), umu(num_measured);
-  e.adjoint = Matrix::Zero(U.rows(), num_measured);
-  e.adjoint_eta = Vector::Zero(num_measured);
-  Matrix paired_modes(U.rows(), num_measured);
-  for (int i = 0; i < num_measured; ++i) paired_modes.col(i) = U.col(model_of[i]);
-  Matrix mode_a, mode_b;
-  system_->derivative_forms(p, paired_modes, paired_modes, &mode_a, &mode_b);
-  for (int i = 0; i < num_measured; ++i) {
-    const int k = model_of[i];
-    dlambda[i] = mode_a.col(i) - lambda[k] * mode_b.col(i);
-    umu[i] = mode_b.col(i);
-    const MeasuredMode& m = problem_.measured[i];
-    const EigenvalueResidual r =
-        eigenvalue_residual(lambda[k], eigenvalue_of_hz(m.frequency_hz), options_.eigenvalue_misfit);
-    e.gradient += m.weight * r.r * r.dr * dlambda[i];
-    e.adjoint.col(i) = m.weight * r.r * r.dr * U.col(k);  // J_lambda u
-    if (need >= Need::Jacobian) e.jacobian.row(i) = std::sqrt(m.weight) * r.dr * dlambda[i].transpose();
-  }
-
-  // Shape terms: adjoint right-hand sides (M u u^T - I) J_u, one column per measured shape.
-  std::vector<int> shape_modes, own;
-  std::vector<Vector> shape_gradient(num_measured);  // J_u of each measured mode's shape term
-  Matrix rhs(U.rows(), 0);
-  for (int i = 0; i < num_measured; ++i) {
-    const MeasuredMode& m = problem_.measured[i];
-    if (m.shape.size() == 0 || m.shape_weight == 0) continue;
-    const Vector u = U.col(model_of[i]);
-    const Vector y = ws.sensors * u;
-    const Vector Ju = ws.sensors.transpose() * detail::ShapeMisfit(m.shape, m.shape_weight).gradient(y);
-    shape_gradient[i] = Ju;
-    rhs.conservativeResize(Eigen::NoChange, rhs.cols() + 1);
-    rhs.col(rhs.cols() - 1) = ws.M * u * u.dot(Ju) - Ju;
-    shape_modes.push_back(i);
-    own.push_back(nr + model_of[i]);
-    // eta_i u^T M_j u with eta_i = -u^T J_u / 2.
-    e.adjoint_eta[i] = -0.5 * u.dot(Ju);
-    e.gradient += e.adjoint_eta[i] * umu[i];
-  }
-  Matrix adjoint_solution(U.rows(), 0);
-  if (!shape_modes.empty()) {
-    std::optional<Matrix> adjoint = deflated_solve("adjoint solve", own, rhs);
-    if (!adjoint) return e;
-    // w_s^T (K_j - lambda M_j) u for every shape at once.
-    Matrix shape_u(U.rows(), static_cast<Eigen::Index>(shape_modes.size()));
-    for (size_t s = 0; s < shape_modes.size(); ++s) shape_u.col(s) = U.col(model_of[shape_modes[s]]);
-    Matrix shape_a, shape_b;
-    system_->derivative_forms(p, *adjoint, shape_u, &shape_a, &shape_b);
-    for (size_t s = 0; s < shape_modes.size(); ++s) {
-      const int k = model_of[shape_modes[s]];
-      e.gradient += shape_a.col(s) - lambda[k] * shape_b.col(s);
-      e.adjoint.col(shape_modes[s]) += adjoint->col(s);
-    }
-    adjoint_solution = std::move(*adjoint);
-  }
-
-  std::vector<int> first_row(num_measured, -1);  // shape rows follow the eigenvalue rows
-  for (int i = 0, r = num_measured; i < num_measured; ++i)
-    if (problem_.measured[i].shape.size()) {
-      first_row[i] = r;
-      r += ns;
-    }
+  if (need >= Need::Jacobian) e.jacobian = Matrix::Zero(num_residuals_, num_parameters());
+  if (!run.gradient()) return e;
+  // The shape rows: sensor adjoints when they are fewer solves than the parameters' sensitivities
+  // (and no Hessian needs the sensitivities anyway).
   const bool sensor_adjoint =
       need == Need::Jacobian && (options_.jacobian == ObjectiveOptions::Jacobian::SensorAdjoint ||
-                                 (options_.jacobian == ObjectiveOptions::Jacobian::Automatic && np > ns));
-  if (sensor_adjoint) {
-    // P du/dp_j = P x_j - (u^T M_j u / 2) P u, and P x_j = P S b_j = Z^T b_j with Z = S P^T (S the
-    // deflated inverse, symmetric) and b_j = -(K_j - lambda M_j) u + dlambda_j M u, whose second
-    // part Z^T M u vanishes (S M u = 0). One solve per sensor reading instead of per parameter.
-    std::vector<int> rows_of, own_columns;
-    for (int i = 0; i < num_measured; ++i)
-      if (problem_.measured[i].has_shape_term()) rows_of.push_back(i);
-    const Matrix sensor_columns = Matrix(ws.sensors.transpose());
-    Matrix adjoint_rhs(U.rows(), static_cast<Eigen::Index>(rows_of.size()) * ns);
-    for (size_t a = 0; a < rows_of.size(); ++a) {
-      adjoint_rhs.middleCols(a * ns, ns) = sensor_columns;
-      own_columns.insert(own_columns.end(), ns, nr + model_of[rows_of[a]]);
-    }
-    const std::optional<Matrix> sensor_solve = deflated_solve("sensor adjoint solve", own_columns, adjoint_rhs);
-    if (!sensor_solve) return e;
-    for (size_t a = 0; a < rows_of.size(); ++a) {
-      const int i = rows_of[a];
-      const MeasuredMode& m = problem_.measured[i];
-      const int k = model_of[i];
-      const Vector y = ws.sensors * U.col(k);
-      Matrix A, B;  // np x ns: z_s^T K_j u and z_s^T M_j u
-      system_->derivative_forms(p, sensor_solve->middleCols(a * ns, ns), U.col(k).replicate(1, ns), &A, &B);
-      const Matrix dy = -(A - lambda[k] * B).transpose() - 0.5 * y * umu[i].transpose();  // ns x np
-      for (int j = 0; j < np; ++j)
-        e.jacobian.block(first_row[i], j, ns, 1) =
-            std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), dy.col(j));
-    }
-  } else if (need >= Need::Jacobian) {
-    // Eigenvector sensitivities du/dp_j = x_j - (u^T M_j u / 2) u with
-    // (K - lambda M) x_j = -(K_j - lambda M_j) u + dlambda_j M u, x_j M-orthogonal to u:
-    // for the shape rows of the Jacobian, and for every paired mode when the Hessian is wanted.
-    std::vector<int> modes_needed;
-    for (int i = 0; i < num_measured; ++i)
-      if (need == Need::Hessian || problem_.measured[i].has_shape_term())
-        modes_needed.push_back(i);
-    Matrix sensitivity_rhs(U.rows(), static_cast<Eigen::Index>(modes_needed.size()) * np);
-    std::vector<int> own_columns;
-    for (size_t a = 0; a < modes_needed.size(); ++a) {
-      const int i = modes_needed[a];
-      const int k = model_of[i];
-      const Vector Mu = ws.M * U.col(k);
-      for (int j = 0; j < np; ++j) {
-        Vector dKu, dMu;
-        system_->derivative_times(p, j, U.col(k), &dKu, &dMu);
-        sensitivity_rhs.col(a * np + j) = -(dKu - lambda[k] * dMu) + dlambda[i][j] * Mu;
-        own_columns.push_back(nr + k);
-      }
-    }
-    const std::optional<Matrix> direct = deflated_solve("sensitivity solve", own_columns, sensitivity_rhs);
-    if (!direct) return e;
-    if (need == Need::Hessian) {
-      e.hessian = Matrix::Zero(np, np);
-      // Regularization: R = alpha/2 |x_r(p) - x_r0|^2, dx/dp = 1/p'(x), d2x/dp2 = -p''(x)/p'(x)^3.
-      const Vector dp = regularization_scaling_.first_derivative(x), d2p = regularization_scaling_.second_derivative(x);
-      for (int j = 0; j < np; ++j)
-        e.hessian(j, j) = options_.regularization *
-                          (1 / (dp[j] * dp[j]) - (x[j] - x0[j]) * d2p[j] / (dp[j] * dp[j] * dp[j]));
-    }
-    for (size_t a = 0; a < modes_needed.size(); ++a) {
-      const int i = modes_needed[a];
-      const MeasuredMode& m = problem_.measured[i];
-      const int k = model_of[i];
-      const Vector u = U.col(k);
-      const Matrix X = direct->middleCols(a * np, np);
-      Matrix dU = X;
-      for (int j = 0; j < np; ++j) dU.col(j) -= 0.5 * umu[i][j] * u;
-      const bool has_shape = m.has_shape_term();
-      if (has_shape) {
-        const Vector y = ws.sensors * u;
-        for (int j = 0; j < np; ++j)
-          e.jacobian.block(first_row[i], j, ns, 1) =
-              std::sqrt(m.shape_weight) * shape_residual_derivative(y, m.shape.normalized(), ws.sensors * dU.col(j));
-      }
-      if (need != Need::Hessian) continue;
-      add_mode_hessian(p, i, lambda[k], u, X, dU, dlambda[i], umu[i], has_shape ? shape_gradient[i] : Vector(),
-                       has_shape ? adjoint_solution.col(std::find(shape_modes.begin(), shape_modes.end(), i) - shape_modes.begin())
-                                 : Vector(),
-                       &e.hessian);
-    }
-  }
+                                 (options_.jacobian == ObjectiveOptions::Jacobian::Automatic &&
+                                  num_parameters() > static_cast<int>(problem_.sensors.size())));
+  if (sensor_adjoint ? !run.sensor_adjoint_jacobian() : need >= Need::Jacobian && !run.sensitivities(need)) return e;
   linear_solves_ += e.linear_solves;
   return e;
 }
