@@ -166,6 +166,220 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   return outcome.str();
 }
 
+/// The candidates that apply to the model (at their screen values, all at once), the others set
+/// aside with the reason.
+std::vector<EffectCandidate> applicable(const Problem& problem, const std::vector<EffectCandidate>& candidates,
+                                        EffectRanking* ranking) {
+  std::vector<EffectCandidate> usable;
+  Model trial = problem.model;
+  for (const EffectCandidate& c : candidates) {
+    ModelChange change = c.change;
+    change.value = c.screen_value;
+    try {
+      apply_model_change(&trial, change);
+      usable.push_back(c);
+    } catch (const std::invalid_argument& e) {
+      ranking->set_aside.emplace_back(c.name, std::string("could not be applied: ") + e.what());
+    }
+  }
+  return usable;
+}
+
+/// The screen's Jacobian: the calibration parameters' columns and each usable candidate's, at the
+/// calibrated point with every candidate at its screen value.
+struct ScreenJacobian {
+  Matrix parameters, candidates;
+  std::vector<bool> evaluated;  // per usable candidate
+};
+
+/// One evaluation for all. If that model cannot be solved (many stiff support springs can make
+/// the eigen-solver take elastic modes for rigid ones), the other candidates and each support's
+/// candidates are evaluated apart, and a group that still fails is set aside.
+ScreenJacobian screen_jacobian(const Problem& problem, const Vector& calibrated, const std::vector<EffectCandidate>& usable,
+                               Eigen::Index num_residuals, const RankingOptions& options, EffectRanking* ranking) {
+  const int np = static_cast<int>(problem.parameters.size());
+  // The Jacobian of the model with a group of candidates added, calibration parameters first.
+  auto jacobian_with = [&](const std::vector<EffectCandidate>& group, Evaluation* e) {
+    std::vector<double> values;
+    for (const EffectCandidate& c : group) values.push_back(c.screen_value);
+    const Problem augmented = problem_with_effects(problem, group, values);
+    Objective objective(augmented, options.objective);
+    Vector p(np + group.size());
+    p << calibrated, Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
+    *e = objective.evaluate(p, Need::Jacobian);
+    ranking->linear_solves += e->linear_solves;
+    return e->ok;
+  };
+  ScreenJacobian s{Matrix(), Matrix(num_residuals, static_cast<Eigen::Index>(usable.size())),
+                   std::vector<bool>(usable.size(), false)};
+  Evaluation e;
+  if (jacobian_with(usable, &e)) {
+    s.parameters = e.jacobian.leftCols(np);
+    s.candidates = e.jacobian.rightCols(usable.size());
+    s.evaluated.assign(usable.size(), true);
+    return s;
+  }
+  std::vector<std::string> keys;  // "" for the other candidates, else the support's place
+  std::vector<std::vector<size_t>> groups;
+  for (size_t k = 0; k < usable.size(); ++k) {
+    const ModelChange& change = usable[k].change;
+    const std::string key = change.kind == ModelChange::Kind::FlexibleSupport
+                                ? "support " + to_string(change).substr(0, to_string(change).find(':'))
+                                : "";
+    const auto at = std::find(keys.begin(), keys.end(), key);
+    if (at == keys.end()) {
+      keys.push_back(key);
+      groups.push_back({k});
+    } else {
+      groups[at - keys.begin()].push_back(k);
+    }
+  }
+  for (const std::vector<size_t>& group : groups) {
+    std::vector<EffectCandidate> members;
+    for (size_t k : group) members.push_back(usable[k]);
+    if (!jacobian_with(members, &e)) {
+      for (size_t k : group) ranking->set_aside.emplace_back(usable[k].name, "could not be evaluated: " + e.message);
+      continue;
+    }
+    if (s.parameters.size() == 0) s.parameters = e.jacobian.leftCols(np);
+    for (size_t a = 0; a < group.size(); ++a) {
+      s.candidates.col(group[a]) = e.jacobian.col(np + a);
+      s.evaluated[group[a]] = true;
+    }
+  }
+  if (s.parameters.size() == 0 && np > 0)
+    throw std::runtime_error("rank_effects: no model with candidates added can be evaluated: " + e.message);
+  return s;
+}
+
+/// Each evaluated candidate's first-order prediction: its column projected off what the
+/// calibration parameters can already do, a 1-D Gauss-Newton step in its screening variable
+/// within its bounds, the chi-square reduction that step predicts, and where the parameters go.
+std::vector<RankedEffect> predict(const Problem& problem, const Vector& calibrated, const Vector& r,
+                                  const std::vector<EffectCandidate>& usable, ScreenJacobian& jacobian,
+                                  EffectRanking* ranking) {
+  const int np = static_cast<int>(problem.parameters.size());
+  Matrix& Jp = jacobian.parameters;
+  // What the calibration parameters can already do: an orthonormal basis of their columns.
+  Matrix Q(r.size(), 0);
+  if (Jp.size() == 0) Jp = Matrix(r.size(), 0);
+  Vector column_norms = Vector::Ones(np);
+  for (int j = 0; j < np; ++j)
+    if (const double n = Jp.col(j).norm(); n > 0) {
+      column_norms[j] = n;
+      Jp.col(j) /= n;
+    }
+  Eigen::ColPivHouseholderQR<Matrix> qr(Jp);
+  qr.setThreshold(1e-10);
+  if (np > 0) Q = qr.householderQ() * Matrix::Identity(r.size(), qr.rank());
+  // Where the linear model puts the calibration parameters once the effect has moved by `step`:
+  // p - J_p^+ (r + j step), each kept within a factor of two and its bounds (the refit's start).
+  auto shifted_parameters = [&](const Vector& column, double step) {
+    Vector p1 = calibrated;
+    if (np == 0) return p1;
+    const Vector shift = qr.solve(Vector(-(r + column * step))).cwiseQuotient(column_norms);
+    for (int j = 0; j < np; ++j) {
+      const Parameter& q = problem.parameters[j];
+      const double v = calibrated[j] + shift[j];
+      p1[j] =
+          std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
+    }
+    return p1;
+  };
+  std::vector<RankedEffect> screened;
+  for (size_t k = 0; k < usable.size(); ++k) {
+    if (!jacobian.evaluated[k]) continue;
+    const EffectCandidate& c = usable[k];
+    const Vector column = jacobian.candidates.col(k) * value_per_variable(c, c.screen_value);
+    const double norm = column.norm();
+    if (!(norm > 0) || !std::isfinite(norm)) {
+      ranking->set_aside.emplace_back(c.name, "no effect on the measured modes");
+      continue;
+    }
+    const Vector projected = column - Q * (Q.transpose() * column);
+    const double h = projected.squaredNorm();
+    if (!(h > 1e-10 * norm * norm)) {
+      ranking->set_aside.emplace_back(c.name, "the calibration parameters already do this");
+      continue;
+    }
+    // 1-D Gauss-Newton in the screening variable, within the candidate's bounds.
+    const double g = projected.dot(r);
+    const double x0 = to_variable(c, c.screen_value);
+    double lo = to_variable(c, c.lower) - x0, hi = to_variable(c, c.upper) - x0;
+    if (lo > hi) std::swap(lo, hi);  // compliance runs opposite to stiffness
+    const double step = std::clamp(-g / h, lo, hi);
+    RankedEffect ranked;
+    ranked.candidate = c;
+    ranked.predicted_reduction = std::max(0.0, -2 * step * g - step * step * h);
+    ranked.predicted_value = from_variable(c, x0 + step);
+    ranked.value = ranked.predicted_value;
+    ranked.parameters.resize(np + 1);
+    ranked.parameters << shifted_parameters(column, step), ranked.predicted_value;
+    screened.push_back(ranked);
+  }
+  return screened;
+}
+
+/// Refits of the best predictions (refit_choices), through the options' TaskMap, each judged by
+/// its likelihood-ratio test against the critical value.
+void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
+                std::vector<RankedEffect>* screened) {
+  const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
+  std::vector<size_t> chosen;
+  for (size_t k : refit_choices(*screened, options.refits))
+    if ((*screened)[k].predicted_reduction > 0 || (*screened)[k].candidate.initial) chosen.push_back(k);
+  const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
+  const std::vector<std::string> outcomes =
+      map(chosen.size(), [&](size_t i) { return refit_candidate(problem, (*screened)[chosen[i]], options); });
+  for (size_t i = 0; i < chosen.size(); ++i) {
+    RankedEffect& ranked = (*screened)[chosen[i]];
+    TaskCodec outcome(outcomes[i]);
+    ranked.refit.termination = static_cast<TerminationType>(static_cast<int>(outcome.get_number()));
+    ranked.refit.iterations = static_cast<int>(outcome.get_number());
+    ranked.refit.message = outcome.get_text();
+    ranked.refit.final = outcome.get_vector();
+    if (ranked.refit.final.size() != np + 1 || !(outcome.get_number() > 0)) continue;  // no usable refit
+    Misfit m;
+    m.statistic = outcome.get_number();
+    m.dof = static_cast<int>(outcome.get_number());
+    m.p_value = outcome.get_number();
+    m.model_form_error = outcome.get_number() > 0;
+    ranked.refitted = true;
+    ranked.parameters = ranked.refit.final;
+    ranked.value = ranked.refit.final[np];
+    ranked.chi2_after = m.statistic;
+    ranked.dof_after = m.dof;
+    ranked.p_value_after = m.p_value;
+    ranked.model_form_error_after = m.model_form_error;
+    ranked.achieved_reduction = ranking.chi2_before - m.statistic;
+    // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees).
+    const double statistic =
+        ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
+    ranked.statistic = statistic;
+    ranked.significant = statistic > ranking.critical_value;
+    ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
+    ranked.delta_aic = statistic - 2;
+  }
+}
+
+/// The standard error of the effect's value in `best`'s refit: the covariance of a noise-weighted
+/// least-squares estimate, (J^T J)^-1; NaN when its Jacobian cannot be had or is singular.
+double standard_error_of(const Problem& problem, const RankedEffect& best, const RankingOptions& options) {
+  const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
+  const Problem with = problem_with_effects(problem, {best.candidate}, {best.value});
+  Objective best_objective(with, options.objective);
+  const Evaluation at = best_objective.evaluate(best.parameters, Need::Jacobian);
+  if (!at.ok) return NAN;
+  // In relative units (columns times the values), which are all of order one.
+  Vector scale = best.parameters.cwiseAbs();
+  for (int j = 0; j < scale.size(); ++j)
+    if (!(scale[j] > 0)) scale[j] = 1;
+  const Matrix scaled = at.jacobian * scale.asDiagonal();
+  Eigen::ColPivHouseholderQR<Matrix> information(scaled.transpose() * scaled);
+  if (!information.isInvertible()) return NAN;
+  return scale[np] * std::sqrt(std::max(0.0, information.inverse()(np, np)));
+}
+
 }  // namespace
 
 ReducedOptions RankingOptions::default_refit_options() {
@@ -229,133 +443,10 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   ranking.dof_before = before.dof;
   ranking.num_data = before.data;
 
-  // Every candidate at once, at its screen value; those that do not apply are set aside.
-  std::vector<EffectCandidate> usable;
-  {
-    Model trial = problem.model;
-    for (const EffectCandidate& c : candidates) {
-      ModelChange change = c.change;
-      change.value = c.screen_value;
-      try {
-        apply_model_change(&trial, change);
-        usable.push_back(c);
-      } catch (const std::invalid_argument& e) {
-        ranking.set_aside.emplace_back(c.name, std::string("could not be applied: ") + e.what());
-      }
-    }
-  }
-  // The Jacobian of the model with a group of candidates added, calibration parameters first.
-  auto jacobian_with = [&](const std::vector<EffectCandidate>& group, Evaluation* e) {
-    std::vector<double> values;
-    for (const EffectCandidate& c : group) values.push_back(c.screen_value);
-    const Problem augmented = problem_with_effects(problem, group, values);
-    Objective objective(augmented, options.objective);
-    Vector p(np + group.size());
-    p << calibrated, Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
-    *e = objective.evaluate(p, Need::Jacobian);
-    ranking.linear_solves += e->linear_solves;
-    return e->ok;
-  };
-  // One evaluation for all. If that model cannot be solved (many stiff support springs can make
-  // the eigen-solver take elastic modes for rigid ones), the other candidates and each support's
-  // candidates are evaluated apart, and a group that still fails is set aside.
-  Matrix Jp, columns(r.size(), static_cast<Eigen::Index>(usable.size()));
-  std::vector<bool> evaluated(usable.size(), false);
-  Evaluation e;
-  if (jacobian_with(usable, &e)) {
-    Jp = e.jacobian.leftCols(np);
-    columns = e.jacobian.rightCols(usable.size());
-    evaluated.assign(usable.size(), true);
-  } else {
-    std::vector<std::string> keys;  // "" for the other candidates, else the support's place
-    std::vector<std::vector<size_t>> groups;
-    for (size_t k = 0; k < usable.size(); ++k) {
-      const ModelChange& change = usable[k].change;
-      const std::string key = change.kind == ModelChange::Kind::FlexibleSupport
-                                  ? "support " + to_string(change).substr(0, to_string(change).find(':'))
-                                  : "";
-      const auto at = std::find(keys.begin(), keys.end(), key);
-      if (at == keys.end()) {
-        keys.push_back(key);
-        groups.push_back({k});
-      } else {
-        groups[at - keys.begin()].push_back(k);
-      }
-    }
-    for (const std::vector<size_t>& group : groups) {
-      std::vector<EffectCandidate> members;
-      for (size_t k : group) members.push_back(usable[k]);
-      if (!jacobian_with(members, &e)) {
-        for (size_t k : group) ranking.set_aside.emplace_back(usable[k].name, "could not be evaluated: " + e.message);
-        continue;
-      }
-      if (Jp.size() == 0) Jp = e.jacobian.leftCols(np);
-      for (size_t a = 0; a < group.size(); ++a) {
-        columns.col(group[a]) = e.jacobian.col(np + a);
-        evaluated[group[a]] = true;
-      }
-    }
-    if (Jp.size() == 0 && np > 0)
-      throw std::runtime_error("rank_effects: no model with candidates added can be evaluated: " + e.message);
-  }
-
-  // What the calibration parameters can already do: an orthonormal basis of their columns.
-  Matrix Q(r.size(), 0);
-  if (Jp.size() == 0) Jp = Matrix(r.size(), 0);
-  Vector column_norms = Vector::Ones(np);
-  for (int j = 0; j < np; ++j)
-    if (const double n = Jp.col(j).norm(); n > 0) {
-      column_norms[j] = n;
-      Jp.col(j) /= n;
-    }
-  Eigen::ColPivHouseholderQR<Matrix> qr(Jp);
-  qr.setThreshold(1e-10);
-  if (np > 0) Q = qr.householderQ() * Matrix::Identity(r.size(), qr.rank());
-  // Where the linear model puts the calibration parameters once the effect has moved by `step`:
-  // p - J_p^+ (r + j step), each kept within a factor of two and its bounds (the refit's start).
-  auto shifted_parameters = [&](const Vector& column, double step) {
-    Vector p1 = calibrated;
-    if (np == 0) return p1;
-    const Vector shift = qr.solve(Vector(-(r + column * step))).cwiseQuotient(column_norms);
-    for (int j = 0; j < np; ++j) {
-      const Parameter& q = problem.parameters[j];
-      const double v = calibrated[j] + shift[j];
-      p1[j] =
-          std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
-    }
-    return p1;
-  };
-  std::vector<RankedEffect> screened;
-  for (size_t k = 0; k < usable.size(); ++k) {
-    if (!evaluated[k]) continue;
-    const EffectCandidate& c = usable[k];
-    const Vector column = columns.col(k) * value_per_variable(c, c.screen_value);
-    const double norm = column.norm();
-    if (!(norm > 0) || !std::isfinite(norm)) {
-      ranking.set_aside.emplace_back(c.name, "no effect on the measured modes");
-      continue;
-    }
-    const Vector projected = column - Q * (Q.transpose() * column);
-    const double h = projected.squaredNorm();
-    if (!(h > 1e-10 * norm * norm)) {
-      ranking.set_aside.emplace_back(c.name, "the calibration parameters already do this");
-      continue;
-    }
-    // 1-D Gauss-Newton in the screening variable, within the candidate's bounds.
-    const double g = projected.dot(r);
-    const double x0 = to_variable(c, c.screen_value);
-    double lo = to_variable(c, c.lower) - x0, hi = to_variable(c, c.upper) - x0;
-    if (lo > hi) std::swap(lo, hi);  // compliance runs opposite to stiffness
-    const double step = std::clamp(-g / h, lo, hi);
-    RankedEffect ranked;
-    ranked.candidate = c;
-    ranked.predicted_reduction = std::max(0.0, -2 * step * g - step * step * h);
-    ranked.predicted_value = from_variable(c, x0 + step);
-    ranked.value = ranked.predicted_value;
-    ranked.parameters.resize(np + 1);
-    ranked.parameters << shifted_parameters(column, step), ranked.predicted_value;
-    screened.push_back(ranked);
-  }
+  // The screen: every candidate's first-order prediction from one Jacobian.
+  const std::vector<EffectCandidate> usable = applicable(problem, candidates, &ranking);
+  ScreenJacobian jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
+  std::vector<RankedEffect> screened = predict(problem, calibrated, r, usable, jacobian, &ranking);
   ranking.screened = static_cast<int>(screened.size());
   set_kind_penalties(&screened, options.equal_kind_prior);
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
@@ -367,41 +458,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
   ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
-  std::vector<size_t> chosen;
-  for (size_t k : refit_choices(screened, options.refits))
-    if (screened[k].predicted_reduction > 0 || screened[k].candidate.initial) chosen.push_back(k);
-  const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
-  const std::vector<std::string> outcomes =
-      map(chosen.size(), [&](size_t i) { return refit_candidate(problem, screened[chosen[i]], options); });
-  for (size_t i = 0; i < chosen.size(); ++i) {
-    RankedEffect& ranked = screened[chosen[i]];
-    TaskCodec outcome(outcomes[i]);
-    ranked.refit.termination = static_cast<TerminationType>(static_cast<int>(outcome.get_number()));
-    ranked.refit.iterations = static_cast<int>(outcome.get_number());
-    ranked.refit.message = outcome.get_text();
-    ranked.refit.final = outcome.get_vector();
-    if (ranked.refit.final.size() != np + 1 || !(outcome.get_number() > 0)) continue;  // no usable refit
-    Misfit m;
-    m.statistic = outcome.get_number();
-    m.dof = static_cast<int>(outcome.get_number());
-    m.p_value = outcome.get_number();
-    m.model_form_error = outcome.get_number() > 0;
-    ranked.refitted = true;
-    ranked.parameters = ranked.refit.final;
-    ranked.value = ranked.refit.final[np];
-    ranked.chi2_after = m.statistic;
-    ranked.dof_after = m.dof;
-    ranked.p_value_after = m.p_value;
-    ranked.model_form_error_after = m.model_form_error;
-    ranked.achieved_reduction = ranking.chi2_before - m.statistic;
-    // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees).
-    const double statistic =
-        ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
-    ranked.statistic = statistic;
-    ranked.significant = statistic > ranking.critical_value;
-    ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
-    ranked.delta_aic = statistic - 2;
-  }
+  refit_best(problem, options, ranking, &screened);
   // Refitted first, the significant ones before the others, each by score; then the rest by
   // prediction.
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
@@ -410,23 +467,8 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
     if (a.significant != b.significant) return a.significant;
     return a.score() > b.score();
   });
-  if (!screened.empty() && screened.front().refitted && ranking.noise_known) {
-    // Covariance of a noise-weighted least-squares estimate: (J^T J)^-1.
-    RankedEffect& best = screened.front();
-    const Problem with = problem_with_effects(problem, {best.candidate}, {best.value});
-    Objective best_objective(with, options.objective);
-    const Evaluation at = best_objective.evaluate(best.parameters, Need::Jacobian);
-    if (at.ok) {
-      // In relative units (columns times the values), which are all of order one.
-      Vector scale = best.parameters.cwiseAbs();
-      for (int j = 0; j < scale.size(); ++j)
-        if (!(scale[j] > 0)) scale[j] = 1;
-      const Matrix scaled = at.jacobian * scale.asDiagonal();
-      Eigen::ColPivHouseholderQR<Matrix> information(scaled.transpose() * scaled);
-      if (information.isInvertible())
-        best.standard_error = scale[np] * std::sqrt(std::max(0.0, information.inverse()(np, np)));
-    }
-  }
+  if (!screened.empty() && screened.front().refitted && ranking.noise_known)
+    screened.front().standard_error = standard_error_of(problem, screened.front(), options);
   ranking.refit_seconds = seconds_since(refit_start);
   ranking.effects = std::move(screened);
   return ranking;
