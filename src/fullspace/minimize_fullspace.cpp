@@ -110,6 +110,343 @@ ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const 
   return check;
 }
 
+/// The driver of minimize_fullspace, one method per step of fullspace.hpp's list: the objectives it
+/// minimizes (the problem's, the globalization's misfit, the eigenvalue terms alone, the crossing
+/// escape's), the full-space problem, and the summary it fills as it goes.
+class FullSpaceDriver {
+ public:
+  FullSpaceDriver(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
+  FullSpaceSummary run();
+
+ private:
+  struct Outcome {
+    FullSpaceStatus status = FullSpaceStatus::Failed;
+    std::string message;
+    Evaluation forward;  // at the final parameters (when the Newton phase ended normally)
+  };
+  /// One Newton attempt's guard: where the iterate last had its modes and where it lost them.
+  struct Guard {
+    Vector last_good, fired_at;
+    bool fired = false;
+    int offset = 0;  // Newton iterations before this attempt
+  };
+
+  Objective& global_objective() { return misfit_objective_ ? *misfit_objective_ : objective_; }
+  const Problem& eigenvalue_terms();
+  FullSpaceSummary finish(FullSpaceStatus status, const std::string& message);
+  Vector globalize_on(Objective& on, const Vector& from, int iterations);
+  Vector globalize(const Vector& from, int iterations) { return globalize_on(global_objective(), from, iterations); }
+  Vector backtrack(const Vector& from, const Vector& to);
+  Outcome solve_from(Vector p);
+  std::optional<std::string> newton_start(const Vector& p, Vector* x0, Vector* y0);
+  detail::NewtonCallback guarded(Guard* guard);
+  detail::NewtonPhaseOptions newton_options() const;
+  Outcome verify(const detail::NewtonPhaseResult& run, bool converged, size_t attempt_start);
+  Outcome escape_crossings(Outcome outcome);
+
+  Objective& objective_;
+  const FullSpaceOptions& options_;
+  const Problem& problem_;
+  const Clock::time_point start_;
+  const int forward_solves_before_;
+  const std::optional<Vector> truth_;
+  const bool weighted_shapes_, weighted_eigenvalues_;
+  FullSpaceSummary summary_;
+  std::unique_ptr<Objective> misfit_objective_, eigenvalue_objective_, escape_objective_;
+  std::unique_ptr<Problem> eigenvalue_problem_;
+  std::optional<ParameterScaling> scaling_;
+  std::unique_ptr<detail::FullSpaceProblem> fp_;
+};
+
+FullSpaceDriver::FullSpaceDriver(Objective& objective, const Vector& p0, const FullSpaceOptions& options)
+    : objective_(objective),
+      options_(options),
+      problem_(objective.problem()),
+      start_(Clock::now()),
+      forward_solves_before_(objective.forward_solves()),
+      truth_(truth_of(problem_)),
+      weighted_shapes_(std::any_of(problem_.measured.begin(), problem_.measured.end(),
+                                   [](const MeasuredMode& m) { return m.has_shape_term(); })),
+      weighted_eigenvalues_(std::any_of(problem_.measured.begin(), problem_.measured.end(),
+                                        [](const MeasuredMode& m) { return m.weight > 0; })) {
+  // The Newton phase keeps the parameters within their bounds: so does the start.
+  summary_.initial = summary_.final = p0.cwiseMax(problem_.lower_bounds()).cwiseMin(problem_.upper_bounds());
+  // The globalization's objective: the same data and options with its own eigenvalue misfit.
+  if (options.globalization_misfit != objective.options().eigenvalue_misfit) {
+    ObjectiveOptions global_options = objective.options();
+    global_options.eigenvalue_misfit = options.globalization_misfit;
+    misfit_objective_ = std::make_unique<Objective>(problem_, global_options);
+  }
+  if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes_ && weighted_eigenvalues_)
+    eigenvalue_objective_ = std::make_unique<Objective>(eigenvalue_terms(), global_objective().options());
+  const bool structured = options.newton_solver == FullSpaceOptions::NewtonSolver::BlockElimination ||
+                          options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
+  summary_.kkt_solver =
+      to_string(structured ? FullSpaceOptions::KktSolver::Structured : FullSpaceOptions::KktSolver::Mumps);
+}
+
+// The eigenvalues-first stage and the crossing escape minimize the eigenvalue terms alone: the
+// same problem with every shape weight 0 (the shapes still pair the modes), made once when needed.
+const Problem& FullSpaceDriver::eigenvalue_terms() {
+  if (!eigenvalue_problem_) {
+    eigenvalue_problem_ = std::make_unique<Problem>(problem_);
+    for (MeasuredMode& m : eigenvalue_problem_->measured) m.shape_weight = 0;
+  }
+  return *eigenvalue_problem_;
+}
+
+FullSpaceSummary FullSpaceDriver::finish(FullSpaceStatus status, const std::string& message) {
+  summary_.status = status;
+  if (summary_.message.empty()) summary_.message = message;
+  summary_.forward_solves = objective_.forward_solves() - forward_solves_before_;
+  for (const std::unique_ptr<Objective>* other : {&misfit_objective_, &eigenvalue_objective_, &escape_objective_})
+    if (*other) summary_.forward_solves += (*other)->forward_solves();
+  summary_.seconds = seconds_since(start_);
+  return summary_;
+}
+
+FullSpaceSummary FullSpaceDriver::run() {
+  const Vector start_point = summary_.initial;
+  const Evaluation initial = objective_.evaluate(start_point, Need::Value);
+  if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
+  summary_.initial_objective = summary_.final_objective = initial.value;
+  if (options_.max_iterations == 0) {
+    summary_.newton_solver = to_string(options_.newton_solver);
+    summary_.newton_status = "not run";
+    summary_.mode_check.reason = "not checked: no iteration";
+    return finish(FullSpaceStatus::MaxIterations, "max_iterations = 0: the start evaluated, no iteration made");
+  }
+  // 1. Globalization: reduced L-BFGS always tracks the paired modes.
+  Vector globalized = start_point;
+  if (eigenvalue_objective_)
+    globalized = globalize_on(*eigenvalue_objective_, globalized, options_.globalization_iterations);
+  if (options_.globalization_iterations > 0) globalized = globalize(globalized, options_.globalization_iterations);
+  scaling_.emplace(options_.scaling ? ParameterScaling(problem_.parameters, *options_.scaling)
+                                    : ParameterScaling(problem_.parameters));
+  fp_ = std::make_unique<detail::FullSpaceProblem>(objective_, *scaling_, globalized);
+  summary_.num_unknowns = fp_->num_variables();
+  summary_.num_constraints = fp_->num_constraints();
+  summary_.newton_solver = to_string(options_.newton_solver);
+  // 2-4. Newton to convergence (guarded, restarted), checked; 5. the crossing escape.
+  const Outcome outcome = escape_crossings(solve_from(globalized));
+  return finish(outcome.status, outcome.message);
+}
+
+Vector FullSpaceDriver::globalize_on(Objective& on, const Vector& from, int iterations) {
+  ReducedOptions reduced;
+  reduced.max_iterations = iterations;
+  reduced.relative_gradient_tolerance = options_.globalization_reduction;
+  reduced.scaling = options_.scaling;
+  const ReducedSummary run = minimize_reduced(on, from, reduced);
+  for (IterationRecord record : run.history) {
+    if (!summary_.globalization_history.empty() && record.iteration == 0) continue;
+    record.iteration += summary_.globalization_iterations;
+    summary_.globalization_history.push_back(record);
+  }
+  summary_.globalization_iterations += run.iterations;
+  return run.final;
+}
+
+// Restart point after the guard fired at `to`: the first of q(from) + a (q(to) - q(from)),
+// a = 1, 1/2, ..., that decreases the reduced objective, else reduced L-BFGS from `from`.
+Vector FullSpaceDriver::backtrack(const Vector& from, const Vector& to) {
+  const Evaluation at_from = objective_.evaluate(from, Need::Value);
+  const Vector q0 = scaling_->to_scaled(from), dq = scaling_->to_scaled(to) - q0;
+  for (double a = 1; at_from.ok && a > 1e-3; a *= 0.5) {
+    const Vector trial = scaling_->to_physical(q0 + a * dq);
+    const Evaluation e = objective_.evaluate(trial, Need::Value);
+    if (e.ok && e.value < at_from.value) return trial;
+  }
+  return globalize(from, std::max(options_.globalization_iterations, 10));
+}
+
+// 2. The Newton start at p: the forward solution, signs aligned with the measured shapes,
+// multipliers from the adjoint. The reason when the forward solve fails.
+std::optional<std::string> FullSpaceDriver::newton_start(const Vector& p, Vector* x0, Vector* y0) {
+  const detail::FullSpaceProblem& fp = *fp_;
+  const Evaluation e = objective_.evaluate(p, Need::Gradient);
+  if (!e.ok) return "start of the Newton phase: " + e.message;
+  Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
+  Vector lambda(fp.num_modes()), eta(fp.num_modes());
+  for (int i = 0; i < fp.num_modes(); ++i) {
+    const int m = fp.measured_of(i);
+    const int k = e.pairs[m].model;
+    const double sign = fp.shape_sign(i, e.modal.modes.col(k));
+    U.col(i) = sign * e.modal.modes.col(k);
+    W.col(i) = sign * e.adjoint.col(m);
+    lambda[i] = e.modal.eigenvalues[k];
+    eta[i] = e.adjoint_eta[m];
+  }
+  *x0 = fp.pack(U, lambda, p);
+  *y0 = fp.pack_multipliers(W, eta);
+  return std::nullopt;
+}
+
+// 3. Each Newton iteration recorded and guarded: a forward solve at its p whose paired modes must
+// have M-weighted MAC >= guard_mac with the iterate's; the phase stops when they do not.
+detail::NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
+  return [this, guard](const detail::NewtonIteration& info, const double* x) {
+    detail::FullSpaceProblem& fp = *fp_;  // mass_matrix caches M at x
+    KktRecord record;
+    record.iteration = guard->offset + info.iteration;
+    record.objective = info.objective;
+    record.primal_infeasibility = info.primal_infeasibility;
+    record.dual_infeasibility = info.dual_infeasibility;
+    record.complementarity = info.complementarity;
+    record.mu = info.mu;
+    record.step_length = info.step_length;
+    record.hessian_shift = info.hessian_shift;
+    record.p = fp.parameters(x);
+    record.parameter_error = parameter_error(truth_, record.p);
+    if (options_.mode_guard) {
+      const Clock::time_point guard_start = Clock::now();
+      const Evaluation forward = objective_.evaluate(record.p, Need::Value);
+      double min_mac = 0;
+      if (forward.ok) {
+        const SparseMatrix& M = fp.mass_matrix(x);
+        min_mac = 1;
+        for (int i = 0; i < fp.num_modes(); ++i) {
+          const Eigen::Map<const Vector> u(x + i * fp.num_dofs(), fp.num_dofs());
+          min_mac = std::min(min_mac, mass_mac(M, u, forward.modal.modes.col(forward.pairs[fp.measured_of(i)].model)));
+        }
+      }
+      record.min_mac = min_mac;
+      summary_.guard_seconds += seconds_since(guard_start);
+      if (min_mac < options_.guard_mac) {
+        guard->fired = true;
+        guard->fired_at = record.p;
+      } else {
+        guard->last_good = record.p;
+      }
+    }
+    summary_.kkt_history.push_back(record);
+    if (options_.progress) options_.progress(record);
+    return !guard->fired;
+  };
+}
+
+detail::NewtonPhaseOptions FullSpaceDriver::newton_options() const {
+  detail::NewtonPhaseOptions newton;
+  newton.max_iterations = std::max(1, options_.max_iterations - summary_.iterations);
+  newton.tolerance = options_.tolerance;
+  newton.mu_init = options_.mu_init;
+  newton.exact_hessian = options_.hessian == FullSpaceOptions::Hessian::Exact;
+  newton.derivative_test = options_.ipopt_derivative_test;
+  newton.print_level = options_.print_level;
+  newton.structured_kkt = options_.kkt_solver == FullSpaceOptions::KktSolver::Structured;
+  return newton;
+}
+
+// 2-4. Newton from p to convergence: restarted from the globalization where it stalls outside its
+// region, from a backtracked point where the guard fires; then checked against a forward solve.
+FullSpaceDriver::Outcome FullSpaceDriver::solve_from(Vector p) {
+  detail::NewtonPhaseResult run;
+  size_t attempt_start = 0;  // first KKT record of the last attempt
+  for (;;) {
+    Vector x0, y0;
+    if (std::optional<std::string> failed = newton_start(p, &x0, &y0))
+      return {FullSpaceStatus::ForwardSolveFailed, *failed, {}};
+    Guard guard{p, p, false, summary_.iterations};
+    attempt_start = summary_.kkt_history.size();
+    const Clock::time_point newton_began = Clock::now();
+    run = options_.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
+              ? detail::run_ipopt(*fp_, x0, y0, newton_options(), guarded(&guard))
+              : detail::run_block_newton(*fp_, x0, y0, newton_options(), guarded(&guard));
+    summary_.newton_seconds += seconds_since(newton_began);
+    summary_.iterations += run.iterations;
+    summary_.kkt_solves += run.hessian_evaluations;
+    summary_.structured_factorizations += run.structured_factorizations;
+    summary_.mumps_factorizations += run.mumps_factorizations;
+    summary_.newton_status = run.status;
+    if (run.outside_newton_region && summary_.restarts < options_.max_restarts &&
+        summary_.iterations < options_.max_iterations) {
+      ++summary_.restarts;  // more reduced iterations from where Newton stalled, then Newton again
+      p = globalize(fp_->parameters(run.x.data()), std::max(options_.globalization_iterations, 10));
+      continue;
+    }
+    if (!(guard.fired && run.stopped_by_callback)) return verify(run, run.solved, attempt_start);
+    // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).
+    if (summary_.restarts >= options_.max_restarts || summary_.iterations >= options_.max_iterations) {
+      summary_.final = guard.last_good;
+      summary_.final_objective = objective_.evaluate(guard.last_good, Need::Value).value;
+      return {FullSpaceStatus::WrongModes,
+              "the mode guard fired " + std::to_string(summary_.restarts + 1) +
+                  " times (an eigenpair left its measured mode); restarts exhausted",
+              {}};
+    }
+    ++summary_.restarts;
+    p = backtrack(guard.last_good, guard.fired_at);
+  }
+}
+
+// 4. The end point against a forward solve at its parameters, and the result fields.
+FullSpaceDriver::Outcome FullSpaceDriver::verify(const detail::NewtonPhaseResult& run, bool converged,
+                                                 size_t attempt_start) {
+  const detail::FullSpaceProblem& fp = *fp_;
+  Matrix U;
+  Vector lambda;
+  fp.unpack(run.x.data(), &U, &lambda, &summary_.final);
+  Outcome outcome;
+  outcome.forward = objective_.evaluate(summary_.final, Need::Value);
+  const Evaluation& final_forward = outcome.forward;
+  summary_.mode_check = check_modes(objective_, *fp_, run.x, final_forward, options_);
+  summary_.final_objective = final_forward.ok ? final_forward.value : NAN;
+  summary_.eigenvalues = lambda;
+  summary_.modes = U;
+  summary_.measured_of_mode = fp.measured_modes();
+  fp.unpack_multipliers(run.y.data(), &summary_.multipliers, &summary_.normalization_multipliers);
+  std::vector<double> errors;
+  for (size_t k = attempt_start; k < summary_.kkt_history.size(); ++k)  // the rate of the attempt that finished
+    errors.push_back(std::max(summary_.kkt_history[k].primal_infeasibility, summary_.kkt_history[k].dual_infeasibility));
+  summary_.convergence_order = estimate_convergence_order(errors);
+  const std::string solver_name = to_string(options_.newton_solver);
+  if (converged && summary_.mode_check.passed) {
+    outcome.status = FullSpaceStatus::Converged;
+    outcome.message = solver_name + ": " + run.status;
+  } else if (converged) {
+    outcome.status = FullSpaceStatus::WrongModes;
+    outcome.message = summary_.mode_check.reason;
+  } else {
+    outcome.status = run.max_iterations ? FullSpaceStatus::MaxIterations : FullSpaceStatus::Failed;
+    outcome.message = run.max_iterations ? solver_name + ": " + run.status : run.message;
+  }
+  return outcome;
+}
+
+// 5. Escape from a minimum where paired modes cross (FullSpaceOptions::max_crossing_escapes):
+// globalize again on the eigenvalues in frequency order, solve again, keep the lower minimum.
+FullSpaceDriver::Outcome FullSpaceDriver::escape_crossings(Outcome outcome) {
+  for (int escape = 0; escape < options_.max_crossing_escapes && weighted_eigenvalues_ &&
+                       options_.globalization_iterations > 0 && outcome.status == FullSpaceStatus::Converged;
+       ++escape) {
+    const std::string crossing = crossed_pairs(problem_, outcome.forward.pairs);
+    if (crossing.empty()) break;
+    if (!escape_objective_) {
+      ObjectiveOptions in_order = global_objective().options();
+      in_order.eigenvalues_in_frequency_order = true;
+      escape_objective_ = std::make_unique<Objective>(eigenvalue_terms(), in_order);
+    }
+    const FullSpaceSummary minimum = summary_;
+    const Outcome minimum_outcome = outcome;
+    Vector from = globalize_on(*escape_objective_, summary_.final, options_.globalization_iterations);
+    from = globalize(from, options_.globalization_iterations);
+    outcome = solve_from(from);
+    CrossingEscape record;
+    record.crossing = crossing;
+    record.objective_at_minimum = minimum.final_objective;
+    record.objective_after = summary_.final_objective;
+    record.converged = outcome.status == FullSpaceStatus::Converged;
+    record.kept = record.converged && summary_.final_objective < minimum.final_objective;
+    if (!record.kept) {
+      keep_result(minimum, &summary_);
+      outcome = minimum_outcome;
+    }
+    summary_.crossing_escapes.push_back(record);
+    if (!record.kept) break;
+  }
+  return outcome;
+}
+
 }  // namespace
 
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options) {
@@ -120,277 +457,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     throw std::invalid_argument(
         "minimize_fullspace: the objective's eigenvalue_misfit must be Relative (the full-space constraints carry "
         "the relative misfit); FullSpaceOptions::globalization_misfit chooses the globalization's");
-  const Clock::time_point start = Clock::now();
-  const Problem& problem = objective.problem();
-  const int forward_solves_before = objective.forward_solves();
-  const std::optional<Vector> truth = truth_of(problem);
-  FullSpaceSummary summary;
-  // The Newton phase keeps the parameters within their bounds: so does the start.
-  const Vector start_point = p0.cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
-  summary.initial = summary.final = start_point;
-  // The globalization's objective: the same data and options with its own eigenvalue misfit.
-  std::unique_ptr<Objective> misfit_objective;
-  if (options.globalization_misfit != objective.options().eigenvalue_misfit) {
-    ObjectiveOptions global_options = objective.options();
-    global_options.eigenvalue_misfit = options.globalization_misfit;
-    misfit_objective = std::make_unique<Objective>(problem, global_options);
-  }
-  Objective& global_objective = misfit_objective ? *misfit_objective : objective;
-  // The eigenvalues-first stage and the crossing escape minimize the eigenvalue terms alone: the
-  // same problem with every shape weight 0 (the shapes still pair the modes), made once when needed.
-  const bool weighted_shapes = std::any_of(problem.measured.begin(), problem.measured.end(),
-                                           [](const MeasuredMode& m) { return m.has_shape_term(); });
-  const bool weighted_eigenvalues = std::any_of(problem.measured.begin(), problem.measured.end(),
-                                                [](const MeasuredMode& m) { return m.weight > 0; });
-  std::unique_ptr<Problem> eigenvalue_problem;
-  auto eigenvalue_terms = [&]() -> const Problem& {
-    if (!eigenvalue_problem) {
-      eigenvalue_problem = std::make_unique<Problem>(problem);
-      for (MeasuredMode& m : eigenvalue_problem->measured) m.shape_weight = 0;
-    }
-    return *eigenvalue_problem;
-  };
-  std::unique_ptr<Objective> eigenvalue_objective;
-  if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes && weighted_eigenvalues)
-    eigenvalue_objective = std::make_unique<Objective>(eigenvalue_terms(), global_objective.options());
-  // The crossing escape's: compared in frequency order (made when needed).
-  std::unique_ptr<Objective> escape_objective;
-  auto finish = [&](FullSpaceStatus status, const std::string& message) {
-    summary.status = status;
-    if (summary.message.empty()) summary.message = message;
-    summary.forward_solves = objective.forward_solves() - forward_solves_before +
-                             (misfit_objective ? misfit_objective->forward_solves() : 0) +
-                             (eigenvalue_objective ? eigenvalue_objective->forward_solves() : 0) +
-                             (escape_objective ? escape_objective->forward_solves() : 0);
-    summary.seconds = seconds_since(start);
-    return summary;
-  };
-
-  const bool structured = options.newton_solver == FullSpaceOptions::NewtonSolver::BlockElimination ||
-                          options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
-  summary.kkt_solver = to_string(structured ? FullSpaceOptions::KktSolver::Structured : FullSpaceOptions::KktSolver::Mumps);
-  const Evaluation initial = objective.evaluate(start_point, Need::Value);
-  if (!initial.ok) return finish(FullSpaceStatus::ForwardSolveFailed, "at the start: " + initial.message);
-  summary.initial_objective = summary.final_objective = initial.value;
-  if (options.max_iterations == 0) {
-    summary.newton_solver = to_string(options.newton_solver);
-    summary.newton_status = "not run";
-    summary.mode_check.reason = "not checked: no iteration";
-    return finish(FullSpaceStatus::MaxIterations, "max_iterations = 0: the start evaluated, no iteration made");
-  }
-
-  // 1. Globalization: reduced L-BFGS always tracks the paired modes.
-  auto globalize_on = [&](Objective& on, const Vector& from, int iterations) {
-    ReducedOptions reduced;
-    reduced.max_iterations = iterations;
-    reduced.relative_gradient_tolerance = options.globalization_reduction;
-    reduced.scaling = options.scaling;
-    const ReducedSummary run = minimize_reduced(on, from, reduced);
-    for (IterationRecord record : run.history) {
-      if (!summary.globalization_history.empty() && record.iteration == 0) continue;
-      record.iteration += summary.globalization_iterations;
-      summary.globalization_history.push_back(record);
-    }
-    summary.globalization_iterations += run.iterations;
-    return run.final;
-  };
-  auto globalize = [&](const Vector& from, int iterations) { return globalize_on(global_objective, from, iterations); };
-  Vector globalized = start_point;
-  if (eigenvalue_objective) globalized = globalize_on(*eigenvalue_objective, globalized, options.globalization_iterations);
-  if (options.globalization_iterations > 0) globalized = globalize(globalized, options.globalization_iterations);
-
-  const ParameterScaling scaling = options.scaling ? ParameterScaling(problem.parameters, *options.scaling)
-                                                   : ParameterScaling(problem.parameters);
-  // Restart point after the guard fired at `to`: the first of q(from) + a (q(to) - q(from)),
-  // a = 1, 1/2, ..., that decreases the reduced objective, else reduced L-BFGS from `from`.
-  auto backtrack = [&](const Vector& from, const Vector& to) {
-    const Evaluation at_from = objective.evaluate(from, Need::Value);
-    const Vector q0 = scaling.to_scaled(from), dq = scaling.to_scaled(to) - q0;
-    for (double a = 1; at_from.ok && a > 1e-3; a *= 0.5) {
-      const Vector trial = scaling.to_physical(q0 + a * dq);
-      const Evaluation e = objective.evaluate(trial, Need::Value);
-      if (e.ok && e.value < at_from.value) return trial;
-    }
-    return globalize(from, std::max(options.globalization_iterations, 10));
-  };
-  detail::FullSpaceProblem fp(objective, scaling, globalized);
-  summary.num_unknowns = fp.num_variables();
-  summary.num_constraints = fp.num_constraints();
-
-  const std::string solver_name = to_string(options.newton_solver);
-  summary.newton_solver = solver_name;
-  // 2-4. Newton from p to convergence (guarded, restarted), then the check against a forward solve.
-  struct Outcome {
-    FullSpaceStatus status = FullSpaceStatus::Failed;
-    std::string message;
-    Evaluation forward;  // at the final parameters (when the Newton phase ended normally)
-  };
-  auto solve_from = [&](Vector p) -> Outcome {
-    detail::NewtonPhaseResult run;
-    bool converged_run = false;
-    size_t attempt_start = 0;  // first KKT record of the last attempt
-    for (;;) {
-      // 2. Start from the forward solution at p, signs aligned, multipliers from the adjoint.
-      const Evaluation e = objective.evaluate(p, Need::Gradient);
-      if (!e.ok) return {FullSpaceStatus::ForwardSolveFailed, "start of the Newton phase: " + e.message, {}};
-      Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
-      Vector lambda(fp.num_modes()), eta(fp.num_modes());
-      for (int i = 0; i < fp.num_modes(); ++i) {
-        const int m = fp.measured_of(i);
-        const int k = e.pairs[m].model;
-        const double sign = fp.shape_sign(i, e.modal.modes.col(k));
-        U.col(i) = sign * e.modal.modes.col(k);
-        W.col(i) = sign * e.adjoint.col(m);
-        lambda[i] = e.modal.eigenvalues[k];
-        eta[i] = e.adjoint_eta[m];
-      }
-      const Vector x0 = fp.pack(U, lambda, p), y0 = fp.pack_multipliers(W, eta);
-
-      // 3. Newton phase, guarded.
-      Vector last_good = p, fired_at = p;
-      bool guard_fired = false;
-      const int offset = summary.iterations;
-      attempt_start = summary.kkt_history.size();
-      detail::NewtonCallback callback = [&](const detail::NewtonIteration& info, const double* x) {
-        KktRecord record;
-        record.iteration = offset + info.iteration;
-        record.objective = info.objective;
-        record.primal_infeasibility = info.primal_infeasibility;
-        record.dual_infeasibility = info.dual_infeasibility;
-        record.complementarity = info.complementarity;
-        record.mu = info.mu;
-        record.step_length = info.step_length;
-        record.hessian_shift = info.hessian_shift;
-        record.p = fp.parameters(x);
-        record.parameter_error = parameter_error(truth, record.p);
-        if (options.mode_guard) {
-          const Clock::time_point guard_start = Clock::now();
-          const Evaluation forward = objective.evaluate(record.p, Need::Value);
-          double min_mac = 0;
-          if (forward.ok) {
-            const SparseMatrix& M = fp.mass_matrix(x);
-            min_mac = 1;
-            for (int i = 0; i < fp.num_modes(); ++i) {
-              const Eigen::Map<const Vector> u(x + i * fp.num_dofs(), fp.num_dofs());
-              min_mac = std::min(min_mac, mass_mac(M, u, forward.modal.modes.col(forward.pairs[fp.measured_of(i)].model)));
-            }
-          }
-          record.min_mac = min_mac;
-          summary.guard_seconds += seconds_since(guard_start);
-          if (min_mac < options.guard_mac) {
-            guard_fired = true;
-            fired_at = record.p;
-          } else {
-            last_good = record.p;
-          }
-        }
-        summary.kkt_history.push_back(record);
-        if (options.progress) options.progress(record);
-        return !guard_fired;
-      };
-      detail::NewtonPhaseOptions newton;
-      newton.max_iterations = std::max(1, options.max_iterations - summary.iterations);
-      newton.tolerance = options.tolerance;
-      newton.mu_init = options.mu_init;
-      newton.exact_hessian = options.hessian == FullSpaceOptions::Hessian::Exact;
-      newton.derivative_test = options.ipopt_derivative_test;
-      newton.print_level = options.print_level;
-      newton.structured_kkt = options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
-      const Clock::time_point newton_start = Clock::now();
-      run = options.newton_solver == FullSpaceOptions::NewtonSolver::Ipopt
-                ? detail::run_ipopt(fp, x0, y0, newton, callback)
-                : detail::run_block_newton(fp, x0, y0, newton, callback);
-      summary.newton_seconds += seconds_since(newton_start);
-      summary.iterations += run.iterations;
-      summary.kkt_solves += run.hessian_evaluations;
-      summary.structured_factorizations += run.structured_factorizations;
-      summary.mumps_factorizations += run.mumps_factorizations;
-      summary.newton_status = run.status;
-      if (run.outside_newton_region && summary.restarts < options.max_restarts &&
-          summary.iterations < options.max_iterations) {
-        ++summary.restarts;  // more reduced iterations from where Newton stalled, then Newton again
-        p = globalize(fp.parameters(run.x.data()), std::max(options.globalization_iterations, 10));
-        continue;
-      }
-      if (!(guard_fired && run.stopped_by_callback)) {
-        converged_run = run.solved;
-        break;
-      }
-      // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).
-      if (summary.restarts >= options.max_restarts || summary.iterations >= options.max_iterations) {
-        summary.final = last_good;
-        summary.final_objective = objective.evaluate(last_good, Need::Value).value;
-        return {FullSpaceStatus::WrongModes,
-                "the mode guard fired " + std::to_string(summary.restarts + 1) +
-                    " times (an eigenpair left its measured mode); restarts exhausted",
-                {}};
-      }
-      ++summary.restarts;
-      p = backtrack(last_good, fired_at);
-    }
-
-    // 4. Verify against a forward solve at the final parameters.
-    Matrix U;
-    Vector lambda;
-    fp.unpack(run.x.data(), &U, &lambda, &summary.final);
-    Outcome outcome;
-    outcome.forward = objective.evaluate(summary.final, Need::Value);
-    const Evaluation& final_forward = outcome.forward;
-    summary.mode_check = check_modes(objective, fp, run.x, final_forward, options);
-    summary.final_objective = final_forward.ok ? final_forward.value : NAN;
-    summary.eigenvalues = lambda;
-    summary.modes = U;
-    summary.measured_of_mode = fp.measured_modes();
-    fp.unpack_multipliers(run.y.data(), &summary.multipliers, &summary.normalization_multipliers);
-    std::vector<double> errors;
-    for (size_t k = attempt_start; k < summary.kkt_history.size(); ++k)  // the rate of the attempt that finished
-      errors.push_back(std::max(summary.kkt_history[k].primal_infeasibility, summary.kkt_history[k].dual_infeasibility));
-    summary.convergence_order = estimate_convergence_order(errors);
-
-    if (converged_run && summary.mode_check.passed) {
-      outcome.status = FullSpaceStatus::Converged;
-      outcome.message = solver_name + ": " + run.status;
-    } else if (converged_run) {
-      outcome.status = FullSpaceStatus::WrongModes;
-      outcome.message = summary.mode_check.reason;
-    } else {
-      outcome.status = run.max_iterations ? FullSpaceStatus::MaxIterations : FullSpaceStatus::Failed;
-      outcome.message = run.max_iterations ? solver_name + ": " + run.status : run.message;
-    }
-    return outcome;
-  };
-
-  Outcome outcome = solve_from(globalized);
-  // 5. Escape from a minimum where paired modes cross (FullSpaceOptions::max_crossing_escapes).
-  for (int escape = 0; escape < options.max_crossing_escapes && weighted_eigenvalues && options.globalization_iterations > 0 &&
-                       outcome.status == FullSpaceStatus::Converged;
-       ++escape) {
-    const std::string crossing = crossed_pairs(problem, outcome.forward.pairs);
-    if (crossing.empty()) break;
-    if (!escape_objective) {
-      ObjectiveOptions in_order = global_objective.options();
-      in_order.eigenvalues_in_frequency_order = true;
-      escape_objective = std::make_unique<Objective>(eigenvalue_terms(), in_order);
-    }
-    const FullSpaceSummary minimum = summary;
-    const Outcome minimum_outcome = outcome;
-    Vector from = globalize_on(*escape_objective, summary.final, options.globalization_iterations);
-    from = globalize(from, options.globalization_iterations);
-    outcome = solve_from(from);
-    CrossingEscape record;
-    record.crossing = crossing;
-    record.objective_at_minimum = minimum.final_objective;
-    record.objective_after = summary.final_objective;
-    record.converged = outcome.status == FullSpaceStatus::Converged;
-    record.kept = record.converged && summary.final_objective < minimum.final_objective;
-    if (!record.kept) {
-      keep_result(minimum, &summary);
-      outcome = minimum_outcome;
-    }
-    summary.crossing_escapes.push_back(record);
-    if (!record.kept) break;
-  }
-  return finish(outcome.status, outcome.message);
+  return FullSpaceDriver(objective, p0, options).run();
 }
 
 }  // namespace modalcal
