@@ -88,6 +88,7 @@
 #include "modalcal/problem.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/synthesis.hpp"
+#include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
 
 using namespace modalcal;

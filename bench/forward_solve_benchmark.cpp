@@ -26,6 +26,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 
 using namespace modalcal;
 using modalcal::bench::parse_list;

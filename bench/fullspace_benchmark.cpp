@@ -77,6 +77,7 @@
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 
 using namespace modalcal;
 using modalcal::bench::parse_list;

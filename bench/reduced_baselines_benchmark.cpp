@@ -37,6 +37,7 @@
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 #ifdef MODALCAL_WITH_ROL
 #include "rol_baseline.hpp"
 #endif

@@ -22,6 +22,7 @@
 #include "modalcal/reduced.hpp"
 #include "modalcal/synthesis.hpp"
 #include "modalcal/uncertainty.hpp"
+#include "modalcal/problem_file.hpp"
 
 using namespace modalcal;
 

@@ -13,6 +13,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/mode_description.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;

@@ -14,6 +14,7 @@
 #include "modalcal/gradient_check.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;

@@ -16,6 +16,7 @@
 
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;

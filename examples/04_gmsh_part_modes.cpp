@@ -20,6 +20,7 @@
 #include "modalcal/mode_description.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/vtu.hpp"
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;

@@ -22,6 +22,7 @@
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/test_data.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace {
 

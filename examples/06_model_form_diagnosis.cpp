@@ -17,6 +17,7 @@
 
 #include "modalcal/comparison.hpp"
 #include "modalcal/diagnosis.hpp"
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;

@@ -22,6 +22,7 @@
 
 #include "fuzz_input.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace fs = std::filesystem;
 

@@ -9,6 +9,7 @@
 
 #include "modalcal/assembly.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -13,6 +13,7 @@
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/synthesis.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "modalcal/comparison.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

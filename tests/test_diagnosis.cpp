@@ -10,6 +10,7 @@
 #include "modalcal/effects.hpp"
 #include "modalcal/synthesis.hpp"
 #include "modalcal/uncertainty.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

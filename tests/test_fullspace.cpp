@@ -13,6 +13,7 @@
 #include "fullspace/ipopt/ipopt_run.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
 #include "test_util.hpp"
 

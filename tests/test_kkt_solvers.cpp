@@ -12,6 +12,7 @@
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/structured_kkt.hpp"
 #include "modalcal/fullspace.hpp"
+#include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
 #include "test_util.hpp"
 

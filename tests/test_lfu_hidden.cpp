@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "modalcal/diagnosis.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

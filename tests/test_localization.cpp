@@ -9,6 +9,7 @@
 #include "diagnostics/region_energy.hpp"
 #include "io/synthetic.hpp"
 #include "modalcal/localization.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -20,6 +20,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/mesh_file.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

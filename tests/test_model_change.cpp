@@ -8,6 +8,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

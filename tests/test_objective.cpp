@@ -10,6 +10,7 @@
 
 #include "modalcal/gradient_check.hpp"
 #include "modalcal/objective.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal {
 namespace {

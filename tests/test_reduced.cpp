@@ -6,6 +6,7 @@
 
 #include "modalcal/identifiability.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 #include "reduced/scaled_problem.hpp"
 #include "test_util.hpp"
 

@@ -5,6 +5,7 @@
 
 #include "modalcal/objective.hpp"
 #include "modalcal/residual_test.hpp"
+#include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
 #include "test_util.hpp"
 

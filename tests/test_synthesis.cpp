@@ -12,6 +12,7 @@
 #include "modalcal/measured_data.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/synthesis.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -15,6 +15,7 @@
 
 #include "modalcal/problem.hpp"
 #include "modalcal/test_data.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

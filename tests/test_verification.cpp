@@ -24,6 +24,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/mode_description.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -10,6 +10,7 @@
 
 #include "modalcal/eigen.hpp"
 #include "modalcal/vtu.hpp"
+#include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {

@@ -8,7 +8,7 @@
 ///
 /// \code
 /// modalcal::MeasuredData data = modalcal::synthesize_measured_data(problem, truth, sensors, options);
-/// modalcal::write_measured_data("out/data.yaml", data, {problem.path});
+/// modalcal::write_measured_data("out/data.yaml", data, {problem.path});  // problem_file.hpp
 /// \endcode
 
 #include <optional>
@@ -42,9 +42,5 @@ struct MeasuredData {
   std::optional<SyntheticTruth> truth;
 };
 
-/// Writes `data` as a YAML data file (atomically; numbers in their shortest round-trip form, so
-/// reading it back gives the same doubles).
-/// \throws std::invalid_argument if `path` is one of `inputs`, std::runtime_error if it cannot be written.
-void write_measured_data(const std::string& path, const MeasuredData& data, const std::vector<std::string>& inputs);
 
 }  // namespace modalcal

@@ -133,12 +133,6 @@ double absent_property_value(const Model& model, const std::string& property_nam
 std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
                                               const std::vector<std::string>& excluded = {});
 
-/// Reads a changes file: a YAML map with a list `changes:` of change strings and an optional
-/// `description:`. Returns nullopt if the file has no `changes` key (it is then a problem file).
-/// \throws ProblemError (problem.hpp) naming the file and line of an unreadable file, a
-///   malformed change, or a key beside `changes` and `description`.
-std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path);
-
 /// Shortest text that reads back as exactly `value` (std::to_chars), e.g. "0.05", "3.1e+05".
 std::string format_round_trip(double value);
 

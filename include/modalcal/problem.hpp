@@ -1,11 +1,12 @@
 #pragma once
 /// \file problem.hpp
 /// A calibration problem: the model, the calibration parameters (bounds, scaling, truth), the
-/// sensors and measured modes, and solver options, as read from a problem file
-/// (YAML; the format is documented in docs/problem-format.md).
+/// sensors and measured modes, and solver options. Every stage from the objective on works on
+/// one; problem_file.hpp reads one from a problem file (YAML; the format is documented in
+/// docs/problem-format.md).
 ///
 /// \code
-/// modalcal::Problem problem = modalcal::load_problem("problems/lfu/synthetic.yaml");
+/// modalcal::Problem problem = modalcal::load_problem("problems/lfu/synthetic.yaml");  // problem_file.hpp
 /// modalcal::ParametricSystem system(problem.model, problem.parameter_targets());
 /// \endcode
 
@@ -170,28 +171,6 @@ struct Problem {
   /// Rigid modes to expect: options.max_rigid_modes, or 6/0 from the model's supports.
   int expected_rigid_modes() const;
 };
-
-/// Settings that override a problem file at load time.
-struct LoadOptions {
-  double refinement = 0;       ///< > 0 overrides a generated mesh's refinement factor (an error with a mesh file)
-  /// Sensors placed at a point, and a data file's sensors, take the nearest node however far it
-  /// is: for a copy of a problem on a finer mesh, where the points may fall between nodes.
-  bool nearest_sensor_nodes = false;
-  /// > 0: the memory (bytes) a mesh's estimated modal solve must fit in, instead of the machine's
-  /// physical memory; a larger mesh is refused like one too large for the machine (the fuzz
-  /// targets keep meshes small this way).
-  double memory_bytes = 0;
-  /// false: a `measured: synthetic:` section is read and checked, but its modes are not computed
-  /// (Problem::measured stays empty): for checking a file without its modal solve.
-  bool synthesize = true;
-};
-
-/// Reads and validates a problem file.
-/// \throws ProblemError naming the file, the line and what is wrong, also for a file that is not
-///         a regular one or has more than 16 MB, and for a generated mesh whose modal solve would
-///         need more memory than the machine has (estimated from its size before it is made);
-///         std::invalid_argument for a refinement that is negative or not finite.
-Problem load_problem(const std::string& path, const LoadOptions& options = {});
 
 /// An error in user input, with its location. what() is "file:line: message".
 class ProblemError : public std::invalid_argument {

@@ -21,6 +21,7 @@
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/vtu.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -22,6 +22,7 @@
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/uncertainty.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -10,6 +10,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/gradient_check.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -14,6 +14,7 @@
 #include "modalcal/comparison.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -16,6 +16,7 @@
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

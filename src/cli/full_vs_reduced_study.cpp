@@ -25,6 +25,7 @@
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
 
 namespace modalcal::cli {

@@ -10,6 +10,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/test_data.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -9,6 +9,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/localization.hpp"
 #include "modalcal/vtu.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

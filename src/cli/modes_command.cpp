@@ -12,6 +12,7 @@
 #include "modalcal/eigen.hpp"
 #include "modalcal/mode_description.hpp"
 #include "modalcal/vtu.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -19,6 +19,7 @@
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
 #include "modalcal/reduced.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

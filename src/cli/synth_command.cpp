@@ -14,6 +14,7 @@
 #include "modalcal/measured_data.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/synthesis.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
 

@@ -10,7 +10,7 @@
 #include <exodusII.h>
 
 #include "io/mesh_file_readers.hpp"
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal::detail {
 

@@ -14,7 +14,7 @@
 #include <gmsh.h>
 
 #include "io/mesh_file_readers.hpp"
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal::detail {

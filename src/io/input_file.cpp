@@ -5,7 +5,7 @@
 #include <fstream>
 #include <iterator>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal::detail {

@@ -1,4 +1,5 @@
 // Writes measured-modes data files (format in docs/problem-format.md; read by the problem loader).
+#include "modalcal/problem_file.hpp"
 #include "modalcal/measured_data.hpp"
 
 #include <nlohmann/json.hpp>

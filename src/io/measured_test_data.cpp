@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal::detail {
 

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "io/input_file.hpp"
+#include "modalcal/problem_file.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
 

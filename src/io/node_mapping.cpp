@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <unordered_map>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/test_data.hpp"
 
 namespace modalcal {

@@ -25,9 +25,10 @@
 #include "io/input_file.hpp"
 #include "io/measured_test_data.hpp"
 #include "io/synthetic.hpp"
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/mesh_file.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal {
 

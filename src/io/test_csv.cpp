@@ -7,7 +7,7 @@
 #include <fstream>
 #include <map>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/test_data.hpp"

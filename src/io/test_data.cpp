@@ -9,7 +9,7 @@
 #include <stdexcept>
 
 #include "io/input_file.hpp"
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {

@@ -12,7 +12,7 @@
 #include <map>
 #include <set>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "io/uff_records.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/test_data.hpp"

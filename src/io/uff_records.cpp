@@ -4,7 +4,7 @@
 #include <charconv>
 #include <cmath>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal::detail {

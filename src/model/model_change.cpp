@@ -9,7 +9,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/block_geometry.hpp"
 
 namespace modalcal {

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "io/text_util.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/model_change.hpp"
 
 namespace modalcal {

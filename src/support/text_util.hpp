@@ -1,5 +1,5 @@
 #pragma once
-// Internal: small text helpers shared by the test-data readers and writers.
+// Internal: small text helpers for messages and the test-data readers and writers.
 #include <sstream>
 #include <string>
 

@@ -5,6 +5,7 @@
 
 #include <modalcal/eigen.hpp>
 #include <modalcal/problem.hpp>
+#include "modalcal/problem_file.hpp"
 
 int main(int argc, char** argv) {
   if (argc != 2) {
