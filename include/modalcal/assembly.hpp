@@ -132,6 +132,7 @@ class ParametricSystem {
 
  private:
   struct Term;
+  class Builder;  // the constructor's steps (parametric_system.cpp)
   // Coefficient of a term (j < 0), its first (k < 0) or second derivative in the parameters.
   double term_scale(const Term& term, const Vector& theta, int j, int k) const;
   void check_parameter(int j) const;

@@ -105,32 +105,57 @@ std::map<std::vector<int>, std::vector<int>> elements_by_regions(const ElementBl
 
 ParametricSystem::~ParametricSystem() = default;
 
-ParametricSystem::ParametricSystem(const Model& model,
-                                   std::vector<std::vector<PropertyId>> parameter_targets)
-    : model_(model), targets_(std::move(parameter_targets)) {
-  model_.validate();
-  property_parameter_.assign(model_.properties.size(), -1);
-  for (int j = 0; j < num_parameters(); ++j) {
-    if (targets_[j].empty())
-      throw std::invalid_argument("parameter " + std::to_string(j) + " targets no property");
-    for (PropertyId id : targets_[j]) {
-      if (id < 0 || id >= static_cast<int>(model_.properties.size()))
+/// The constructor's steps: the parameters' properties, the sparsity pattern, the term matrices
+/// of the blocks and of the discrete entities, and the check that every free DOF has a term.
+class ParametricSystem::Builder {
+ public:
+  explicit Builder(ParametricSystem& system) : s_(system) {}
+  void bind_parameters();
+  void sparsity_pattern();
+  void block_terms();
+  void discrete_terms();
+  void require_every_dof_touched() const;
+
+ private:
+  static Coefficient::Factor factor(PropertyId id) {
+    return Coefficient::Factor{Coefficient::Kind::Property, id, kNoProperty};
+  }
+  int find_position(int row, int col) const;
+  void scatter(const std::vector<int>& full, const std::vector<const Matrix*>& local);
+  void finish(int index, Coefficient coefficient, bool mass, Matrix inertia = Matrix());
+  void add_inertia(Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) const;
+  void discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass,
+                     Matrix inertia = Matrix());
+  void group_terms(const ElementBlock& b, const std::vector<int>& regions, const std::vector<int>& elements,
+                   ElementMatrixCache* cache);
+
+  ParametricSystem& s_;
+  std::unique_ptr<TermAccumulator> acc_;
+  std::vector<std::vector<std::pair<int, double>>> deps_;  // scatter's scratch
+};
+
+void ParametricSystem::Builder::bind_parameters() {
+  s_.property_parameter_.assign(s_.model_.properties.size(), -1);
+  for (int j = 0; j < s_.num_parameters(); ++j) {
+    if (s_.targets_[j].empty()) throw std::invalid_argument("parameter " + std::to_string(j) + " targets no property");
+    for (PropertyId id : s_.targets_[j]) {
+      if (id < 0 || id >= static_cast<int>(s_.model_.properties.size()))
         throw std::invalid_argument("parameter " + std::to_string(j) + " targets an unknown property");
-      if (property_parameter_[id] >= 0)
-        throw std::invalid_argument("property '" + model_.properties[id].name +
-                                    "' is the target of two parameters");
-      property_parameter_[id] = j;
+      if (s_.property_parameter_[id] >= 0)
+        throw std::invalid_argument("property '" + s_.model_.properties[id].name + "' is the target of two parameters");
+      s_.property_parameter_[id] = j;
     }
   }
-  dofs_ = std::make_unique<DofMap>(model_);
-  const DofMap& dofs = *dofs_;
-  const int n = model_.num_nodes();
-  if (dofs.num_free() == 0) throw std::invalid_argument("model has no free degrees of freedom");
+}
 
-  // --- Sparsity pattern at node level: a coupled node acts through its reference node.
+// The sparsity pattern at node level: a coupled node acts through its reference node.
+void ParametricSystem::Builder::sparsity_pattern() {
+  const Model& model = s_.model_;
+  const DofMap& dofs = *s_.dofs_;
+  const int n = model.num_nodes();
   std::vector<int> representative(n);
   for (int v = 0; v < n; ++v) representative[v] = v;
-  for (const RigidCoupling& r : model_.rigid_couplings)
+  for (const RigidCoupling& r : model.rigid_couplings)
     for (int v : r.nodes) representative[v] = r.reference;
   std::vector<int> first_free(n, -1), free_count(n, 0);
   for (int f = 0; f < dofs.num_free(); ++f) {
@@ -143,17 +168,17 @@ ParametricSystem::ParametricSystem(const Model& model,
     for (int a = 0; a < count; ++a)
       for (int b = 0; b < count; ++b) adjacency[representative[nodes[a]]].push_back(representative[nodes[b]]);
   };
-  for (const ElementBlock& b : model_.blocks) {
+  for (const ElementBlock& b : model.blocks) {
     const int npe = nodes_per_element(b.type);
     for (int e = 0; e < b.num_elements(); ++e) connect(&b.connectivity[e * npe], npe);
   }
-  for (const Joint& j : model_.joints) {
+  for (const Joint& j : model.joints) {
     const int pair[2] = {j.node_a, j.node_b};
     connect(pair, 2);
   }
-  for (const GroundSpring& s : model_.ground_springs)
-    for (int v : s.nodes) connect(&v, 1);
-  for (const PointMass& m : model_.point_masses) connect(&m.node, 1);
+  for (const GroundSpring& g : model.ground_springs)
+    for (int v : g.nodes) connect(&v, 1);
+  for (const PointMass& m : model.point_masses) connect(&m.node, 1);
   long long nnz = 0;
   for (int v = 0; v < n; ++v) {
     auto& a = adjacency[v];
@@ -164,10 +189,11 @@ ParametricSystem::ParametricSystem(const Model& model,
   }
   if (nnz > std::numeric_limits<int>::max())
     throw std::invalid_argument("model too large: K would have more than 2^31 nonzeros");
-  pattern_.resize(dofs.num_free(), dofs.num_free());
-  pattern_.resizeNonZeros(static_cast<int>(nnz));
-  int* outer = pattern_.outerIndexPtr();
-  int* inner = pattern_.innerIndexPtr();
+  SparseMatrix& pattern = s_.pattern_;
+  pattern.resize(dofs.num_free(), dofs.num_free());
+  pattern.resizeNonZeros(static_cast<int>(nnz));
+  int* outer = pattern.outerIndexPtr();
+  int* inner = pattern.innerIndexPtr();
   int position = 0;
   for (int f = 0; f < dofs.num_free(); ++f) {
     outer[f] = position;
@@ -175,135 +201,148 @@ ParametricSystem::ParametricSystem(const Model& model,
       for (int k = 0; k < free_count[u]; ++k) inner[position++] = first_free[u] + k;
   }
   outer[dofs.num_free()] = position;
-  columns_.resize(nnz);
+  s_.columns_.resize(nnz);
   for (int f = 0; f < dofs.num_free(); ++f)
-    std::fill(columns_.begin() + outer[f], columns_.begin() + outer[f + 1], f);
-  std::fill(pattern_.valuePtr(), pattern_.valuePtr() + nnz, 0.0);
-  adjacency.clear();
-  adjacency.shrink_to_fit();
+    std::fill(s_.columns_.begin() + outer[f], s_.columns_.begin() + outer[f + 1], f);
+  std::fill(pattern.valuePtr(), pattern.valuePtr() + nnz, 0.0);
+  acc_ = std::make_unique<TermAccumulator>(3, static_cast<int>(nnz));
+}
 
-  // --- Term matrices.
-  const DofMap::RowSparseMatrix& T = dofs.transformation_rows();
-  auto find_position = [&](int row, int col) {
-    const int* begin = inner + outer[col];
-    const int* end = inner + outer[col + 1];
-    return static_cast<int>(std::lower_bound(begin, end, row) - inner);
-  };
-  // Adds the local matrices (one per accumulated term) for local full DOFs `full`
-  // (-1 = absent), through u_full = T u.
-  std::vector<std::vector<std::pair<int, double>>> deps;
-  auto scatter = [&](TermAccumulator& acc, const std::vector<int>& full,
-                     const std::vector<const Matrix*>& local) {
-    const int m = static_cast<int>(full.size());
-    deps.resize(m);
-    for (int a = 0; a < m; ++a) {
-      deps[a].clear();
-      if (full[a] < 0) continue;
-      for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
-        deps[a].emplace_back(static_cast<int>(it.col()), it.value());
-    }
-    for (int b = 0; b < m; ++b)
-      for (const auto& [j, wj] : deps[b])
-        for (int a = 0; a < m; ++a)
-          for (const auto& [i, wi] : deps[a]) {
-            const int pos = find_position(i, j);
-            for (size_t t = 0; t < local.size(); ++t) {
-              const double v = (*local[t])(a, b);
-              if (v != 0.0) acc.add(static_cast<int>(t), pos, wi * wj * v);
-            }
-          }
-  };
-  auto factor = [](PropertyId id) { return Coefficient::Factor{Coefficient::Kind::Property, id, kNoProperty}; };
-  auto finish = [&](TermAccumulator& acc, int index, Coefficient coefficient, bool mass, Matrix inertia = Matrix()) {
-    Term term;
-    term.inertia = std::move(inertia);
-    term.coefficient = std::move(coefficient);
-    term.mass = mass;
-    acc.extract(index, &term.positions, &term.values);
-    for (PropertyId id : term.coefficient.involved())
-      if (property_parameter_[id] >= 0) term.parameters.push_back(property_parameter_[id]);
-    std::sort(term.parameters.begin(), term.parameters.end());
-    term.parameters.erase(std::unique(term.parameters.begin(), term.parameters.end()), term.parameters.end());
-    if (!term.positions.empty()) terms_.push_back(std::move(term));
-  };
+int ParametricSystem::Builder::find_position(int row, int col) const {
+  const int* outer = s_.pattern_.outerIndexPtr();
+  const int* inner = s_.pattern_.innerIndexPtr();
+  const int* begin = inner + outer[col];
+  const int* end = inner + outer[col + 1];
+  return static_cast<int>(std::lower_bound(begin, end, row) - inner);
+}
 
-  const int nnz_int = static_cast<int>(nnz);
-  ElementMatrixCache cache;
-  mass_groups_.clear();
-  // Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
-  // every local DOF, fixed or not.
-  auto add_inertia = [&](Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) {
-    for (size_t a = 0; a < full.size(); ++a) {
-      if (full[a] < 0) continue;
-      for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
-        inertia.row(it.col()) += it.value() * local_inertia.row(a);
-    }
-  };
-  TermAccumulator acc(3, nnz_int);
-  for (const ElementBlock& b : model_.blocks) {
-    const int npe = nodes_per_element(b.type);
-    Matrix translations = Matrix::Zero(3 * npe, 3);
-    for (int k = 0; k < npe; ++k) translations.block(3 * k, 0, 3, 3).setIdentity();
-    std::vector<int> full(3 * npe);
-    Eigen::Matrix3Xd x(3, npe);
-    // One set of terms per group of elements in the same regions (most blocks: one group).
-    for (const auto& [regions, elements] : elements_by_regions(b)) {
-      Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
-      double volume = 0;
-      for (int e : elements) {
-        for (int k = 0; k < npe; ++k) {
-          const int v = b.connectivity[e * npe + k];
-          x.col(k) = model_.coordinates[v];
-          for (int c = 0; c < 3; ++c) full[3 * k + c] = dofs.full_index(v, c);
-        }
-        const SolidElementMatrices* em;
-        try {
-          em = &cache.get(b.type, x);
-        } catch (const std::invalid_argument& error) {
-          throw std::invalid_argument("block '" + b.name + "', element " + std::to_string(e + 1) + ": " + error.what());
-        }
-        for (int k = 0; k < npe; ++k) volume += em->mass.row(3 * k).sum();
-        scatter(acc, full, {&em->volumetric, &em->deviatoric, &em->mass});
-        add_inertia(inertia, full, em->mass * translations);
-      }
-      Coefficient bulk, shear, density;
-      if (b.form == ElasticForm::BulkShear) {
-        bulk.factors = {factor(b.modulus_a)};
-        shear.factors = {factor(b.modulus_b)};
-      } else {
-        bulk.factors = {{Coefficient::Kind::BulkFromYoung, b.modulus_a, b.modulus_b}};
-        shear.factors = {{Coefficient::Kind::ShearFromYoung, b.modulus_a, b.modulus_b}};
-      }
-      density.factors = {factor(b.density)};
-      std::vector<PropertyId> stiffness_scales{b.stiffness_scale}, mass_scales{b.mass_scale};
-      for (int r : regions) {
-        stiffness_scales.push_back(b.regions[r].stiffness_scale);
-        mass_scales.push_back(b.regions[r].mass_scale);
-      }
-      for (PropertyId id : stiffness_scales)
-        if (id != kNoProperty) {
-          bulk.factors.push_back(factor(id));
-          shear.factors.push_back(factor(id));
-        }
-      for (PropertyId id : mass_scales)
-        if (id != kNoProperty) density.factors.push_back(factor(id));
-      mass_groups_.push_back({volume, density});
-      finish(acc, 0, bulk, false);
-      finish(acc, 1, shear, false);
-      finish(acc, 2, density, true, std::move(inertia));
-      acc.reset();
-    }
+// Adds the local matrices (one per accumulated term) for local full DOFs `full` (-1 = absent),
+// through u_full = T u.
+void ParametricSystem::Builder::scatter(const std::vector<int>& full, const std::vector<const Matrix*>& local) {
+  const DofMap::RowSparseMatrix& T = s_.dofs_->transformation_rows();
+  const int m = static_cast<int>(full.size());
+  deps_.resize(m);
+  for (int a = 0; a < m; ++a) {
+    deps_[a].clear();
+    if (full[a] < 0) continue;
+    for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
+      deps_[a].emplace_back(static_cast<int>(it.col()), it.value());
   }
+  for (int b = 0; b < m; ++b)
+    for (const auto& [j, wj] : deps_[b])
+      for (int a = 0; a < m; ++a)
+        for (const auto& [i, wi] : deps_[a]) {
+          const int pos = find_position(i, j);
+          for (size_t t = 0; t < local.size(); ++t) {
+            const double v = (*local[t])(a, b);
+            if (v != 0.0) acc_->add(static_cast<int>(t), pos, wi * wj * v);
+          }
+        }
+}
 
-  // Discrete entities: one term per (entity, component), so each can be a parameter (in the
-  // accumulator's first slot).
-  auto discrete_term = [&](const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass,
-                           Matrix inertia = Matrix()) {
-    scatter(acc, full, {&local});
-    finish(acc, 0, Coefficient{{factor(id)}}, mass, std::move(inertia));
-    acc.reset();
-  };
-  for (const Joint& j : model_.joints) {
+// The accumulated term `index` as a Term with its coefficient (dropped when it touches nothing).
+void ParametricSystem::Builder::finish(int index, Coefficient coefficient, bool mass, Matrix inertia) {
+  Term term;
+  term.inertia = std::move(inertia);
+  term.coefficient = std::move(coefficient);
+  term.mass = mass;
+  acc_->extract(index, &term.positions, &term.values);
+  for (PropertyId id : term.coefficient.involved())
+    if (s_.property_parameter_[id] >= 0) term.parameters.push_back(s_.property_parameter_[id]);
+  std::sort(term.parameters.begin(), term.parameters.end());
+  term.parameters.erase(std::unique(term.parameters.begin(), term.parameters.end()), term.parameters.end());
+  if (!term.positions.empty()) s_.terms_.push_back(std::move(term));
+}
+
+// Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
+// every local DOF, fixed or not.
+void ParametricSystem::Builder::add_inertia(Matrix& inertia, const std::vector<int>& full,
+                                            const Matrix& local_inertia) const {
+  const DofMap::RowSparseMatrix& T = s_.dofs_->transformation_rows();
+  for (size_t a = 0; a < full.size(); ++a) {
+    if (full[a] < 0) continue;
+    for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
+      inertia.row(it.col()) += it.value() * local_inertia.row(a);
+  }
+}
+
+void ParametricSystem::Builder::block_terms() {
+  ElementMatrixCache cache;
+  s_.mass_groups_.clear();
+  for (const ElementBlock& b : s_.model_.blocks)
+    // One set of terms per group of elements in the same regions (most blocks: one group).
+    for (const auto& [regions, elements] : elements_by_regions(b)) group_terms(b, regions, elements, &cache);
+}
+
+// The volumetric, deviatoric and mass terms of a block's elements that lie in `regions`, their
+// coefficients the block's moduli and density times the block's and the regions' multipliers.
+void ParametricSystem::Builder::group_terms(const ElementBlock& b, const std::vector<int>& regions,
+                                            const std::vector<int>& elements, ElementMatrixCache* cache) {
+  const DofMap& dofs = *s_.dofs_;
+  const int npe = nodes_per_element(b.type);
+  Matrix translations = Matrix::Zero(3 * npe, 3);
+  for (int k = 0; k < npe; ++k) translations.block(3 * k, 0, 3, 3).setIdentity();
+  std::vector<int> full(3 * npe);
+  Eigen::Matrix3Xd x(3, npe);
+  Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
+  double volume = 0;
+  for (int e : elements) {
+    for (int k = 0; k < npe; ++k) {
+      const int v = b.connectivity[e * npe + k];
+      x.col(k) = s_.model_.coordinates[v];
+      for (int c = 0; c < 3; ++c) full[3 * k + c] = dofs.full_index(v, c);
+    }
+    const SolidElementMatrices* em;
+    try {
+      em = &cache->get(b.type, x);
+    } catch (const std::invalid_argument& error) {
+      throw std::invalid_argument("block '" + b.name + "', element " + std::to_string(e + 1) + ": " + error.what());
+    }
+    for (int k = 0; k < npe; ++k) volume += em->mass.row(3 * k).sum();
+    scatter(full, {&em->volumetric, &em->deviatoric, &em->mass});
+    add_inertia(inertia, full, em->mass * translations);
+  }
+  Coefficient bulk, shear, density;
+  if (b.form == ElasticForm::BulkShear) {
+    bulk.factors = {factor(b.modulus_a)};
+    shear.factors = {factor(b.modulus_b)};
+  } else {
+    bulk.factors = {{Coefficient::Kind::BulkFromYoung, b.modulus_a, b.modulus_b}};
+    shear.factors = {{Coefficient::Kind::ShearFromYoung, b.modulus_a, b.modulus_b}};
+  }
+  density.factors = {factor(b.density)};
+  std::vector<PropertyId> stiffness_scales{b.stiffness_scale}, mass_scales{b.mass_scale};
+  for (int r : regions) {
+    stiffness_scales.push_back(b.regions[r].stiffness_scale);
+    mass_scales.push_back(b.regions[r].mass_scale);
+  }
+  for (PropertyId id : stiffness_scales)
+    if (id != kNoProperty) {
+      bulk.factors.push_back(factor(id));
+      shear.factors.push_back(factor(id));
+    }
+  for (PropertyId id : mass_scales)
+    if (id != kNoProperty) density.factors.push_back(factor(id));
+  s_.mass_groups_.push_back({volume, density});
+  finish(0, bulk, false);
+  finish(1, shear, false);
+  finish(2, density, true, std::move(inertia));
+  acc_->reset();
+}
+
+// A discrete entity's component as a term of its own (in the accumulator's first slot), so that
+// each can be a parameter.
+void ParametricSystem::Builder::discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id,
+                                              bool mass, Matrix inertia) {
+  scatter(full, {&local});
+  finish(0, Coefficient{{factor(id)}}, mass, std::move(inertia));
+  acc_->reset();
+}
+
+// Joints, springs to ground and point masses: one term per (entity, component).
+void ParametricSystem::Builder::discrete_terms() {
+  const DofMap& dofs = *s_.dofs_;
+  for (const Joint& j : s_.model_.joints) {
     std::vector<int> full(12);
     for (int c = 0; c < 6; ++c) {
       full[c] = dofs.full_index(j.node_a, c);
@@ -313,14 +352,14 @@ ParametricSystem::ParametricSystem(const Model& model,
       if (j.stiffness[c] != kNoProperty) discrete_term(full, joint_component_matrix(j.frame, c), j.stiffness[c], false);
   }
   const Matrix one = Matrix::Ones(1, 1);
-  for (const GroundSpring& s : model_.ground_springs)
+  for (const GroundSpring& g : s_.model_.ground_springs)
     for (int c = 0; c < 6; ++c) {
-      if (s.stiffness[c] == kNoProperty) continue;
-      for (int v : s.nodes) scatter(acc, {dofs.full_index(v, c)}, {&one});
-      finish(acc, 0, Coefficient{{factor(s.stiffness[c])}}, false);
-      acc.reset();
+      if (g.stiffness[c] == kNoProperty) continue;
+      for (int v : g.nodes) scatter({dofs.full_index(v, c)}, {&one});
+      finish(0, Coefficient{{factor(g.stiffness[c])}}, false);
+      acc_->reset();
     }
-  for (const PointMass& m : model_.point_masses) {
+  for (const PointMass& m : s_.model_.point_masses) {
     const Matrix identity = Matrix::Identity(3, 3);
     if (m.mass != kNoProperty) {
       const std::vector<int> full = {dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)};
@@ -331,20 +370,37 @@ ParametricSystem::ParametricSystem(const Model& model,
     for (int c = 0; c < 3; ++c)
       if (m.inertia[c] != kNoProperty) discrete_term({dofs.full_index(m.node, 3 + c)}, one, m.inertia[c], true);
   }
+}
 
-  // A free DOF no term touches makes K and M singular together; name it instead of letting
-  // the factorization fail obscurely.
+// A free DOF no term touches makes K and M singular together; name it instead of letting the
+// factorization fail obscurely.
+void ParametricSystem::Builder::require_every_dof_touched() const {
+  const DofMap& dofs = *s_.dofs_;
+  const int* inner = s_.pattern_.innerIndexPtr();
   std::vector<char> touched(dofs.num_free(), 0);
-  for (const Term& t : terms_)
+  for (const Term& t : s_.terms_)
     for (int pos : t.positions) touched[inner[pos]] = 1;
   for (int f = 0; f < dofs.num_free(); ++f)
     if (!touched[f]) {
       const auto [v, c] = dofs.free_owner(f);
       throw std::invalid_argument(
-          "node " + std::to_string(model_.node_ids[v]) + " DOF " + component_name(c) +
+          "node " + std::to_string(s_.model_.node_ids[v]) + " DOF " + component_name(c) +
           " has neither stiffness nor mass: a reference node needs a rigid coupling, a joint or a "
           "point mass acting on every DOF it has (or fix the DOF)");
     }
+}
+
+ParametricSystem::ParametricSystem(const Model& model, std::vector<std::vector<PropertyId>> parameter_targets)
+    : model_(model), targets_(std::move(parameter_targets)) {
+  model_.validate();
+  Builder build(*this);
+  build.bind_parameters();
+  dofs_ = std::make_unique<DofMap>(model_);
+  if (dofs_->num_free() == 0) throw std::invalid_argument("model has no free degrees of freedom");
+  build.sparsity_pattern();
+  build.block_terms();
+  build.discrete_terms();
+  build.require_every_dof_touched();
 }
 
 Vector ParametricSystem::property_values(const Vector& p) const {
