@@ -99,6 +99,39 @@ double parameter_error(const Problem& problem, const Vector& p) {
   return (p.array() / problem.truth_values().array() - 1).abs().maxCoeff();
 }
 
+// The damped second-order step on the free variables: (H_f + damping diag(H_f)) d_f = -g_f, H
+// the Gauss-Newton matrix J^T J (with the regularization's Hessian) or, with `exact`, the exact
+// Hessian with its eigenvalues made positive (their absolute values, floored at 1e-8 of the
+// largest); zero on the active bounds.
+Vector damped_newton_direction(const ScaledProblem& problem, const Point& current, const std::vector<bool>& active,
+                               bool exact, double damping) {
+  Matrix H;
+  if (exact) {
+    Eigen::SelfAdjointEigenSolver<Matrix> eig(0.5 * (current.hessian + current.hessian.transpose()));
+    const Vector mu = eig.eigenvalues().cwiseAbs();
+    const double floor = 1e-8 * std::max(mu.maxCoeff(), 1e-300);
+    H = eig.eigenvectors() * mu.cwiseMax(floor).asDiagonal() * eig.eigenvectors().transpose();
+  } else {
+    H = current.jacobian.transpose() * current.jacobian;
+    H.diagonal() += problem.regularization_hessian(current.x);
+  }
+  std::vector<int> free;
+  for (int j = 0; j < current.x.size(); ++j)
+    if (!active[j]) free.push_back(j);
+  Matrix Hf(free.size(), free.size());
+  Vector gf(free.size());
+  for (size_t a = 0; a < free.size(); ++a) {
+    gf[a] = current.gradient[free[a]];
+    for (size_t b = 0; b < free.size(); ++b) Hf(a, b) = H(free[a], free[b]);
+  }
+  const double scale = std::max(Hf.diagonal().maxCoeff(), 1e-300);
+  Hf.diagonal() += damping * (Hf.diagonal() + Vector::Constant(free.size(), 1e-12 * scale));
+  const Vector df = Hf.ldlt().solve(-gf);
+  Vector direction = Vector::Zero(current.x.size());
+  for (size_t a = 0; a < free.size(); ++a) direction[free[a]] = df[a];
+  return direction;
+}
+
 }  // namespace
 
 ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options) {
@@ -178,35 +211,8 @@ ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const Re
       return finish(TerminationType::Converged, message, current);
     }
     const std::vector<bool> active = problem.active_set(current);
-    Vector direction;
-    if (second_order) {
-      Matrix H;
-      if (newton && use_exact_hessian) {
-        Eigen::SelfAdjointEigenSolver<Matrix> eig(0.5 * (current.hessian + current.hessian.transpose()));
-        const Vector mu = eig.eigenvalues().cwiseAbs();
-        const double floor = 1e-8 * std::max(mu.maxCoeff(), 1e-300);
-        H = eig.eigenvectors() * mu.cwiseMax(floor).asDiagonal() * eig.eigenvectors().transpose();
-      } else {
-        H = current.jacobian.transpose() * current.jacobian;
-        H.diagonal() += problem.regularization_hessian(current.x);
-      }
-      std::vector<int> free;
-      for (int j = 0; j < current.x.size(); ++j)
-        if (!active[j]) free.push_back(j);
-      Matrix Hf(free.size(), free.size());
-      Vector gf(free.size());
-      for (size_t a = 0; a < free.size(); ++a) {
-        gf[a] = current.gradient[free[a]];
-        for (size_t b = 0; b < free.size(); ++b) Hf(a, b) = H(free[a], free[b]);
-      }
-      const double scale = std::max(Hf.diagonal().maxCoeff(), 1e-300);
-      Hf.diagonal() += damping * (Hf.diagonal() + Vector::Constant(free.size(), 1e-12 * scale));
-      const Vector df = Hf.ldlt().solve(-gf);
-      direction = Vector::Zero(current.x.size());
-      for (size_t a = 0; a < free.size(); ++a) direction[free[a]] = df[a];
-    } else {
-      direction = -memory.apply_inverse(current.gradient, active);
-    }
+    Vector direction = second_order ? damped_newton_direction(problem, current, active, newton && use_exact_hessian, damping)
+                                    : Vector(-memory.apply_inverse(current.gradient, active));
     if (!(direction.dot(current.gradient) < 0)) {
       direction = -masked(current.gradient, active);  // not a descent direction: steepest descent
       memory.clear();
