@@ -340,13 +340,7 @@ TEST(Cli, ImportTestDataNamesTheBadLineAndKeepsInputs) {
 
 // The bar with sensors on its top edge and Young's modulus to calibrate (its truth unknown: the
 // truth model keeps the file's value).
-const std::string kSensedBar = testing::CantileverBar() + R"(parameters:
-  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, scaling: log}
-sensors:
-  - {node_set: top_edge, directions: [x, y, z]}
-options:
-  num_modes: 6
-)";
+const std::string kSensedBar = testing::SensedBar();
 
 TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);

@@ -20,13 +20,7 @@ using testing::ReadFile;
 using testing::RunCli;
 using testing::WriteTempFile;
 
-const std::string kSensedBar = testing::CantileverBar() + R"(parameters:
-  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, scaling: log}
-sensors:
-  - {node_set: top_edge, directions: [x, y, z]}
-options:
-  num_modes: 6
-)";
+const std::string kSensedBar = testing::SensedBar();
 
 /// The serial runs with one BLAS thread, as every rank has: the same arithmetic, so that the
 /// iterations counted agree too.
@@ -37,13 +31,8 @@ void OneBlasThread() { setenv("OPENBLAS_NUM_THREADS", "1", 1); }
 CliRun RunMpi(const std::string& args) {
   const std::string mpirun = MODALCAL_MPIRUN;
   if (mpirun.empty()) return {127, "mpirun not found when the tests were configured: install openmpi-bin"};
-  const std::string command = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OPENBLAS_NUM_THREADS=1 " +
-                              mpirun + " --oversubscribe -np 3 " + MODALCAL_CLI + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string out;
-  char buffer[4096];
-  while (size_t n = fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
-  return {WEXITSTATUS(pclose(pipe)), out};
+  return testing::RunShell("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OPENBLAS_NUM_THREADS=1 " + mpirun +
+                           " --oversubscribe -np 3 " + MODALCAL_CLI + " " + args);
 }
 
 /// Two JSON documents alike: the same structure, strings and flags; numbers equal to `tolerance`

@@ -145,14 +145,25 @@ std::string ReadFile(const std::string& path) {
   return s.str();
 }
 
-CliRun RunCli(const std::string& args) {
-  const std::string command = std::string(MODALCAL_CLI) + " " + args + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
+CliRun RunShell(const std::string& command) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
   std::string out;
   char buffer[4096];
   while (size_t n = fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
   const int status = pclose(pipe);
   return {WEXITSTATUS(status), out};
+}
+
+CliRun RunCli(const std::string& args) { return RunShell(std::string(MODALCAL_CLI) + " " + args); }
+
+std::string SensedBar() {
+  return CantileverBar() + R"(parameters:
+  E: {targets: [bar.E], initial: 1000, lower: 10, upper: 1e5, scaling: log}
+sensors:
+  - {node_set: top_edge, directions: [x, y, z]}
+options:
+  num_modes: 6
+)";
 }
 
 Model MakeChain(int n, double m, double k, bool grounded) {

@@ -57,6 +57,12 @@ struct CliRun {
 
 /// Runs `fullspace_calib ARGS` through the shell (so ARGS may quote and redirect).
 CliRun RunCli(const std::string& args);
+/// Runs a shell command line, its stderr joined to its stdout.
+CliRun RunShell(const std::string& command);
+
+/// CantileverBar() with one calibration parameter (the modulus E, log-scaled, start 1000),
+/// triaxial sensors along the top edge and six modes: the CLI tests' small problem.
+std::string SensedBar();
 
 /// A spring-mass chain along x: `n` point masses `m` on nodes 1..n joined by joints of axial
 /// stiffness `k` (properties "joint<i>.kx"); node 0 is fixed in x when `grounded`, otherwise
