@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/LU>
 #include "modalcal/diagnosis.hpp"
@@ -692,6 +693,15 @@ springs:
   // Open above: it ends at the bound, or where a still stiffer spring makes the eigen-solve fail.
   EXPECT_GE(k.profile->second, k.value) << u.FullReport();
   EXPECT_GE(1.0e6, k.profile->first) << u.FullReport();  // the truth is inside
+  // The closed end was located, not guessed across a long step: the recalibrated points on
+  // either side of it straddle the 95 % quantile (3.84) with at most that much rise between them.
+  const auto above = std::lower_bound(k.profile_points.begin(), k.profile_points.end(),
+                                      std::make_pair(k.profile->first, -std::numeric_limits<double>::infinity()));
+  ASSERT_TRUE(above != k.profile_points.begin() && above != k.profile_points.end()) << u.FullReport();
+  const auto below = std::prev(above);
+  EXPECT_GE(below->second, 3.84) << below->first;
+  EXPECT_LT(above->second, 3.84) << above->first;
+  EXPECT_LE(below->second - std::max(0.0, above->second), 3.85) << below->first << " " << above->first;
   // The moduli stay well identified: no profile, finite intervals around their values.
   for (int j = 0; j < 2; ++j) {
     EXPECT_FALSE(u.parameters[j].profile) << u.FullReport();

@@ -156,50 +156,74 @@ double chi_square(const Likelihood& l, const ReducedSummary& fit, Eigen::Index s
   return fit.final.size() == size ? 2 * l.factor * fit.final_objective : NAN;
 }
 
+/// The rise of the likelihood above `minimum` with parameter j fixed at `value`, the others
+/// recalibrated from `others` (updated to where they went); NaN when the model fails there.
+double recalibrated_rise(const Likelihood& l, double minimum, size_t j, double value, Vector* others,
+                         const UncertaintyOptions& options, ParameterUncertainty* pu) {
+  const Problem fixed = with_fixed(l.problem, j, value);
+  if (fixed.parameters.empty()) return chi_square(l, fixed, Vector(0)) - minimum;
+  Objective objective(fixed);
+  const ReducedSummary fit = minimize_reduced(objective, *others, options.recalibration);
+  ++pu->profile_calibrations;
+  if (fit.final.size() == others->size()) *others = fit.final;
+  return chi_square(l, fit, others->size()) - minimum;
+}
+
 /// One side (`direction` ±1) of parameter j's profile from the calibrated point `best` (where
 /// the likelihood is at its minimum `minimum`): the end point in p, and whether it is open.
+/// Steps grow by 1.5 from `step` (in the optimizer's variable) until the rise reaches the
+/// chi-square quantile; the crossing is then bisected until the rise across the bracket is at
+/// most the quantile, and interpolated: a steep or jumping rise (a far step past where the others
+/// can still compensate) must not put the end anywhere in a long step.
 std::pair<double, bool> profile_side(const Likelihood& l, const Vector& best, double minimum, size_t j,
                                      double step, int direction, const UncertaintyOptions& options,
                                      ParameterUncertainty* pu) {
   const ParameterScaling scaling(l.problem.parameters);
+  const Eigen::Index J = static_cast<Eigen::Index>(j);
   const Parameter& q = l.problem.parameters[j];
-  const double x_hi = scaling.to_scaled(l.problem.upper_bounds())[static_cast<Eigen::Index>(j)];
-  const double x_lo = scaling.to_scaled(l.problem.lower_bounds())[static_cast<Eigen::Index>(j)];
-  const double x_end = direction > 0 ? x_hi : x_lo;
+  const double x_end = scaling.to_scaled(direction > 0 ? l.problem.upper_bounds() : l.problem.lower_bounds())[J];
   const double quantile = chi_square_critical_value(1 - options.confidence, 1);
   Vector x = scaling.to_scaled(best);
-  double x_prev = x[static_cast<Eigen::Index>(j)], rise_prev = 0;
+  auto physical = [&](double xj) {
+    x[J] = xj;
+    return scaling.to_physical(x)[J];
+  };
+  double x_prev = x[J], rise_prev = 0;
   Vector others = without(best, j);
   for (int k = 0; k < options.profile_steps; ++k, step *= 1.5) {
     double x_try = x_prev + direction * step;
     const bool at_end = direction > 0 ? x_try >= x_end : x_try <= x_end;
     if (at_end) x_try = x_end;
-    x[static_cast<Eigen::Index>(j)] = x_try;
-    const double value = scaling.to_physical(x)[static_cast<Eigen::Index>(j)];
-    const Problem fixed = with_fixed(l.problem, j, value);
-    double rise = NAN;
-    if (fixed.parameters.empty()) {
-      rise = chi_square(l, fixed, Vector(0)) - minimum;
-    } else {
-      Objective objective(fixed);
-      const ReducedSummary fit = minimize_reduced(objective, others, options.recalibration);
-      ++pu->profile_calibrations;
-      rise = chi_square(l, fit, others.size()) - minimum;
-      if (fit.final.size() == others.size()) others = fit.final;
-    }
+    const double value = physical(x_try);
+    Vector others_try = others;
+    const double rise = recalibrated_rise(l, minimum, j, value, &others_try, options, pu);
     if (!std::isfinite(rise)) break;  // the model fails here: end the profile where it still held
     pu->profile_points.emplace_back(value, rise);
     if (rise >= quantile) {
-      const double t = (quantile - rise_prev) / (rise - rise_prev);
-      x[static_cast<Eigen::Index>(j)] = x_prev + t * (x_try - x_prev);
-      return {scaling.to_physical(x)[static_cast<Eigen::Index>(j)], false};
+      double a = x_prev, ra = rise_prev, b = x_try, rb = rise;
+      for (int bisection = 0; bisection < 10 && rb - ra > quantile; ++bisection) {
+        const double mid = 0.5 * (a + b);
+        Vector others_mid = others;
+        const double rise_mid = recalibrated_rise(l, minimum, j, physical(mid), &others_mid, options, pu);
+        if (std::isfinite(rise_mid)) pu->profile_points.emplace_back(physical(mid), rise_mid);
+        if (std::isfinite(rise_mid) && rise_mid < quantile) {
+          a = mid;
+          ra = std::max(0.0, rise_mid);
+          others = others_mid;
+        } else {
+          b = mid;
+          rb = std::isfinite(rise_mid) ? rise_mid : INFINITY;
+        }
+      }
+      const double t = std::isfinite(rb) ? (quantile - ra) / (rb - ra) : 0.5;
+      return {physical(a + t * (b - a)), false};
     }
     if (at_end) return {direction > 0 ? q.upper : q.lower, true};
     x_prev = x_try;
     rise_prev = std::max(0.0, rise);
+    others = others_try;
   }
-  x[static_cast<Eigen::Index>(j)] = x_prev;
-  return {scaling.to_physical(x)[static_cast<Eigen::Index>(j)], true};
+  return {physical(x_prev), true};
 }
 
 std::string format_value(double v) {
