@@ -135,8 +135,15 @@ nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::ve
   for (size_t i = 0; i < n; ++i) mean += values[i] / static_cast<double>(n);
   for (size_t i = 0; i < n; ++i) sd += (values[i] - mean) * (values[i] - mean);
   sd = n > 1 ? std::sqrt(sd / static_cast<double>(n - 1)) : NAN;
-  for (double e : errors) rms_error += e * e / static_cast<double>(n);
-  rms_error = std::sqrt(rms_error);
+  // Over the calibrations that have a standard error: NaN (null) when none has, and then no
+  // spread ratio and no test either.
+  int finite_errors = 0;
+  for (double e : errors)
+    if (std::isfinite(e)) {
+      rms_error += e * e;
+      ++finite_errors;
+    }
+  rms_error = finite_errors ? std::sqrt(rms_error / finite_errors) : NAN;
   double weight = 0, weighted = 0;
   for (size_t i = 0; i < n; ++i)
     if (sx[i] > 0 && std::isfinite(sx[i])) {
@@ -168,7 +175,7 @@ nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::ve
           {"rms_standard_error", json_number(rms_error)},
           {"spread_ratio", json_number(sd / rms_error)},
           {"homogeneity", {{"statistic", json_number(Q)}, {"dof", std::max(0, terms - 1)}, {"p_value", json_number(p)}}},
-          {"varies_between_tests", varies}};
+          {"varies_between_tests", std::isnan(p) ? nlohmann::json() : nlohmann::json(varies)}};
 }
 
 /// The runs of the campaign JSON files `merge` (in the order given), checked against the

@@ -198,7 +198,9 @@ void plot_sample_matrix(const std::string& path, const std::string& title, const
       for (Eigen::Index j = 0; j < n; ++j) out << (j ? " " : "") << m.samples(i, j);
       out << "\n";
     }
-    script << "set multiplot layout " << n << "," << n << " title " << quoted(title) << "\n";
+    // noenhanced: parameter names are printed as they are (joint1_kx, not joint1 with subscript kx).
+    script << "set termoption noenhanced\nset multiplot layout " << n << "," << n << " title " << quoted(title) << "\n";
+    script << "set xtics rotate by 30 right\n";
     script << "unset key\nset tics font 'sans,7'\nset format x '%.3g'\nset format y '%.3g'\n";
     script << "set style fill solid 0.6 border -1\n";
     for (Eigen::Index row = 0; row < n; ++row)
