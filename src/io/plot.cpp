@@ -200,7 +200,8 @@ void plot_sample_matrix(const std::string& path, const std::string& title, const
     }
     // noenhanced: parameter names are printed as they are (joint1_kx, not joint1 with subscript kx).
     script << "set termoption noenhanced\nset multiplot layout " << n << "," << n << " title " << quoted(title) << "\n";
-    script << "set xtics rotate by 30 right\n";
+    // Axes fitted to the values (a log axis would otherwise widen to whole decades).
+    script << "set xtics rotate by 30 right\nset autoscale fix\nset offsets graph 0.08, graph 0.08, graph 0.08, graph 0.08\n";
     script << "unset key\nset tics font 'sans,7'\nset format x '%.3g'\nset format y '%.3g'\n";
     script << "set style fill solid 0.6 border -1\n";
     for (Eigen::Index row = 0; row < n; ++row)
@@ -209,8 +210,10 @@ void plot_sample_matrix(const std::string& path, const std::string& title, const
           script << "set multiplot next\n";
           continue;
         }
-        script << "unset logscale\nset xlabel " << quoted(row == n - 1 ? m.names[static_cast<size_t>(col)] : "")
-               << "\nset ylabel " << quoted(col == 0 ? (row == col ? "count" : m.names[static_cast<size_t>(row)]) : "")
+        script << "set xlabel " << quoted(row == n - 1 ? m.names[static_cast<size_t>(col)] + (logarithmic(col) ? " (log10)" : "") : "")
+               << "\nset ylabel "
+               << quoted(col == 0 ? (row == col ? "count" : m.names[static_cast<size_t>(row)] + (logarithmic(row) ? " (log10)" : ""))
+                                  : "")
                << "\n";
         const std::string x = "$" + std::to_string(col + 1);
         if (col == row) {
@@ -221,14 +224,17 @@ void plot_sample_matrix(const std::string& path, const std::string& title, const
                                             std::max(3.0, std::ceil(std::sqrt(static_cast<double>(v.size())))),
                                         1e-6 * std::max(1.0, std::abs(v.maxCoeff())));
           const std::string value = lg ? "log10(" + x + ")" : x;
-          script << "set xlabel " << quoted(row == n - 1 ? m.names[static_cast<size_t>(col)] + (lg ? " (log10)" : "") : "")
-                 << "\nset boxwidth " << 0.9 * width << "\nplot " << quoted(data.string()) << " using ("
+          script << "set boxwidth " << 0.9 * width << "\nplot " << quoted(data.string()) << " using ("
                  << width << "*floor(" << value << "/" << width << ")+" << 0.5 * width
                  << "):(1.0) smooth frequency with boxes lc rgb '#3182bd'\n";
         } else {
-          if (logarithmic(col)) script << "set logscale x\n";
-          if (logarithmic(row)) script << "set logscale y\n";
-          script << "plot " << quoted(data.string()) << " using " << col + 1 << ":" << row + 1
+          // Log-scaled variables as log10 on linear axes, as their histograms: a log axis within
+          // less than a decade has no labelled tics.
+          auto column = [&](Eigen::Index j) {
+            const std::string c = "$" + std::to_string(j + 1);
+            return logarithmic(j) ? "(log10(" + c + "))" : "(" + c + ")";
+          };
+          script << "plot " << quoted(data.string()) << " using " << column(col) << ":" << column(row)
                  << " with points pt 7 ps 0.6 lc rgb '#3182bd'\n";
         }
       }
