@@ -161,7 +161,8 @@ TEST(Mpi, DiagnosisAcrossRanksEqualsTheSerialDiagnosis) {
   ExpectAlike(a, b, 1e-6, "diagnosis");
 }
 
-// The study's runs, each a child process, handed out to the ranks: the same successes and errors.
+// The studies' runs handed out to the ranks: full-vs-reduced's child processes (the same
+// successes) and study starts' calibrations (the same report).
 TEST(Mpi, StudyAcrossRanksEqualsTheSerialStudy) {
   OneBlasThread();
   const std::string dir = std::filesystem::path(WriteTempFile("marker", "")).parent_path().string();
@@ -180,6 +181,16 @@ TEST(Mpi, StudyAcrossRanksEqualsTheSerialStudy) {
     EXPECT_EQ(a["runs"][k]["success"], b["runs"][k]["success"]) << k;
   }
   EXPECT_EQ(a["methods"]["fullspace"]["successes"], b["methods"]["fullspace"]["successes"]);
+
+  // study starts: its calibrations from each start factor, shared the same way.
+  const std::string starts = "study starts " + problem + " --factors 0.5 2 ";
+  serial = RunCli(starts + "--json " + dir + "/starts-serial.json");
+  ASSERT_EQ(serial.exit_code, 0) << serial.output;
+  mpi = RunMpi(starts + "--json " + dir + "/starts-mpi.json");
+  ASSERT_EQ(mpi.exit_code, 0) << mpi.output;
+  const nlohmann::json c = nlohmann::json::parse(ReadFile(dir + "/starts-serial.json"));
+  const nlohmann::json d = nlohmann::json::parse(ReadFile(dir + "/starts-mpi.json"));
+  ExpectAlike(c, d, 1e-6, "study starts");
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "cli/calibration_report.hpp"
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
+#include "cli/work_farm.hpp"
 #include "modalcal/identifiability.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/plot.hpp"
@@ -108,35 +109,57 @@ int run_bounds_scaling(const StudyArgs& args) {
   return 0;
 }
 
+/// One start's calibration as it travels between the ranks of an MPI job: its brief report and,
+/// when it ended with a result, the report's text and JSON, the calibrated values and objective.
+nlohmann::json calibrate_from(const StudyArgs& args, const Problem& problem, double factor) {
+  Objective objective(problem);
+  ReducedOptions options;
+  options.method = parse_method(args.method);
+  options.max_iterations = 200;
+  const Vector start = (problem.initial_values() * factor).cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
+  const ReducedSummary s = minimize_reduced(objective, start, options);
+  nlohmann::json result = {{"brief", s.BriefReport()}, {"ok", false}};
+  if (s.final.size() != static_cast<Eigen::Index>(problem.parameters.size())) return result;
+  CalibrationReport report = make_report(objective, s.initial, s.final);
+  report.summary = summary_json(problem, s);
+  nlohmann::json run = report.json();
+  run["start_factor"] = factor;
+  result["ok"] = true;
+  result["text"] = report.text;
+  result["run"] = run;
+  result["final"] = std::vector<double>(s.final.data(), s.final.data() + s.final.size());
+  result["objective"] = s.final_objective;
+  return result;
+}
+
 int run_starts(const StudyArgs& args) {
+  const WorkFarm& farm = WorkFarm::join();  // in an MPI job, the starts are shared among the ranks
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   const int n = static_cast<int>(problem.parameters.size());
   std::printf("%s: calibrations from the problem's start times", problem.path.c_str());
   for (double f : args.factors) std::printf(" %g", f);
   std::printf("\n");
+  const std::vector<std::string> results = WorkFarm::join().map(
+      args.factors.size(), [&](size_t k) { return calibrate_from(args, problem, args.factors[k]).dump(); },
+      [&](size_t k, const std::string& text) {
+        const nlohmann::json r = nlohmann::json::parse(text);
+        std::printf("\nstart x %g: %s\n", args.factors[k], r["brief"].get<std::string>().c_str());
+        if (r["ok"] == true) std::fputs(r["text"].get<std::string>().c_str(), stdout);
+      });
+  if (!farm.is_root()) return 0;  // rank 0 reports
   std::vector<Vector> finals;
   std::vector<double> objectives;
   nlohmann::json runs = nlohmann::json::array();
   int best = -1;
-  for (double factor : args.factors) {
-    Objective objective(problem);
-    ReducedOptions options;
-    options.method = parse_method(args.method);
-    options.max_iterations = 200;
-    const Vector start = (problem.initial_values() * factor).cwiseMax(problem.lower_bounds()).cwiseMin(problem.upper_bounds());
-    const ReducedSummary s = minimize_reduced(objective, start, options);
-    std::printf("\nstart x %g: %s\n", factor, s.BriefReport().c_str());
-    if (s.final.size() != n) continue;
-    CalibrationReport report = make_report(objective, s.initial, s.final);
-    report.summary = summary_json(problem, s);
-    std::fputs(report.text.c_str(), stdout);
-    finals.push_back(s.final);
-    objectives.push_back(s.final_objective);
-    if (best < 0 || s.final_objective < objectives[best]) best = static_cast<int>(finals.size()) - 1;
-    nlohmann::json run = report.json();
-    run["start_factor"] = factor;
-    runs.push_back(run);
+  for (const std::string& text : results) {
+    const nlohmann::json r = nlohmann::json::parse(text);
+    if (r["ok"] != true) continue;
+    const std::vector<double> final = r["final"].get<std::vector<double>>();
+    finals.push_back(Eigen::Map<const Vector>(final.data(), static_cast<Eigen::Index>(final.size())));
+    objectives.push_back(r["objective"].get<double>());
+    if (best < 0 || objectives.back() < objectives[best]) best = static_cast<int>(finals.size()) - 1;
+    runs.push_back(r["run"]);
   }
   if (finals.empty()) {
     std::fprintf(stderr, "error: no calibration succeeded\n");
