@@ -65,42 +65,82 @@ int Model::num_elements() const {
   return n;
 }
 
-void Model::validate() const {
-  const int n = num_nodes();
-  if (static_cast<int>(node_ids.size()) != n || static_cast<int>(has_rotations.size()) != n)
-    fail("model: node arrays have inconsistent sizes");
-  for (int i = 0; i < n; ++i)
-    if (!coordinates[i].allFinite())
-      fail("node " + std::to_string(node_ids[i]) + ": coordinates are not finite");
-  auto check_node = [&](int node, const std::string& where) {
-    if (node < 0 || node >= n) fail(where + ": refers to a node that does not exist");
-  };
-  auto check_property = [&](PropertyId id, const std::string& where) {
-    if (id != kNoProperty && (id < 0 || id >= static_cast<int>(properties.size())))
-      fail(where + ": refers to a property that does not exist");
-    if (id != kNoProperty && !std::isfinite(properties[id].value))
-      fail("property '" + properties[id].name + "' is not a finite number");
-  };
-  for (const Property& p : properties)
-    if (!std::isfinite(p.value)) fail("property '" + p.name + "' is not a finite number");
+namespace {
 
-  std::set<std::string> names;
-  auto unique_name = [&](const std::string& name, const std::string& kind) {
+/// Model::validate's checks, one method per kind of entity; every failure throws
+/// std::invalid_argument naming the entity.
+class ModelCheck {
+ public:
+  explicit ModelCheck(const Model& model) : m_(model), n_(model.num_nodes()) {}
+  void nodes_and_properties() const;
+  void blocks();
+  void joints();
+  void springs_and_masses();
+  void couplings_and_fixed() const;
+
+ private:
+  void node(int v, const std::string& where) const {
+    if (v < 0 || v >= n_) fail(where + ": refers to a node that does not exist");
+  }
+  void property(PropertyId id, const std::string& where) const {
+    if (id != kNoProperty && (id < 0 || id >= static_cast<int>(m_.properties.size())))
+      fail(where + ": refers to a property that does not exist");
+    if (id != kNoProperty && !std::isfinite(m_.properties[id].value))
+      fail("property '" + m_.properties[id].name + "' is not a finite number");
+  }
+  void unique_name(const std::string& name, const std::string& kind) {
     if (name.empty()) fail(kind + " without a name");
-    if (!names.insert(name).second)
+    if (!names_.insert(name).second)
       fail(kind + " '" + name + "': the name is used by another block, joint, spring or mass");
+  }
+  void elastic_constants(const ElementBlock& b, const std::string& where) const;
+
+  const Model& m_;
+  const int n_;
+  std::set<std::string> names_;
+};
+
+void ModelCheck::nodes_and_properties() const {
+  if (static_cast<int>(m_.node_ids.size()) != n_ || static_cast<int>(m_.has_rotations.size()) != n_)
+    fail("model: node arrays have inconsistent sizes");
+  for (int i = 0; i < n_; ++i)
+    if (!m_.coordinates[i].allFinite()) fail("node " + std::to_string(m_.node_ids[i]) + ": coordinates are not finite");
+  for (const Property& p : m_.properties)
+    if (!std::isfinite(p.value)) fail("property '" + p.name + "' is not a finite number");
+}
+
+// As the problem loader requires of the file's values; also for those set later (--set, changes).
+void ModelCheck::elastic_constants(const ElementBlock& b, const std::string& where) const {
+  auto positive_modulus = [&](PropertyId id, const char* what) {
+    if (!(m_.property_value(id) > 0)) {
+      char value[32];
+      std::snprintf(value, sizeof value, "%g", m_.property_value(id));
+      fail(where + ": " + what + " must be positive, got " + value);
+    }
   };
-  for (const ElementBlock& b : blocks) {
+  if (b.form == ElasticForm::YoungPoisson) {
+    positive_modulus(b.modulus_a, "Young's modulus E");
+  } else {
+    positive_modulus(b.modulus_a, "bulk modulus K");
+    positive_modulus(b.modulus_b, "shear modulus G");
+  }
+  if (b.form == ElasticForm::YoungPoisson) {
+    const double nu = m_.property_value(b.modulus_b);
+    if (!(nu > -1.0 && nu < 0.5)) fail(where + ": Poisson's ratio " + std::to_string(nu) + " is outside (-1, 0.5)");
+  }
+}
+
+void ModelCheck::blocks() {
+  for (const ElementBlock& b : m_.blocks) {
     const std::string where = "block '" + b.name + "'";
     unique_name(b.name, "block");
     const int npe = nodes_per_element(b.type);
     if (b.connectivity.size() % npe != 0) fail(where + ": connectivity length is not a multiple of " + std::to_string(npe));
-    for (int v : b.connectivity) check_node(v, where);
+    for (int v : b.connectivity) node(v, where);
     if (b.modulus_a == kNoProperty || b.modulus_b == kNoProperty || b.density == kNoProperty)
       fail(where + ": needs two elastic constants and a density");
-    for (PropertyId id : {b.modulus_a, b.modulus_b, b.density, b.stiffness_scale, b.mass_scale})
-      check_property(id, where);
-    if (property_value(b.density) < 0) fail(where + ": density is negative");
+    for (PropertyId id : {b.modulus_a, b.modulus_b, b.density, b.stiffness_scale, b.mass_scale}) property(id, where);
+    if (m_.property_value(b.density) < 0) fail(where + ": density is negative");
     for (const BlockRegion& r : b.regions) {
       unique_name(r.name, "region");
       if (r.elements.empty()) fail("region '" + r.name + "' of " + where + " has no elements");
@@ -108,101 +148,101 @@ void Model::validate() const {
         if (r.elements[k] < 0 || r.elements[k] >= b.num_elements() || (k > 0 && r.elements[k] <= r.elements[k - 1]))
           fail("region '" + r.name + "' of " + where + ": element indices must be sorted, unique and below " +
                std::to_string(b.num_elements()));
-      check_property(r.stiffness_scale, "region '" + r.name + "'");
-      check_property(r.mass_scale, "region '" + r.name + "'");
+      property(r.stiffness_scale, "region '" + r.name + "'");
+      property(r.mass_scale, "region '" + r.name + "'");
     }
-    // As the problem loader requires of the file's values; also for those set later (--set, changes).
-    auto positive_modulus = [&](PropertyId id, const char* what) {
-      if (!(property_value(id) > 0)) {
-        char value[32];
-        std::snprintf(value, sizeof value, "%g", property_value(id));
-        fail(where + ": " + what + " must be positive, got " + value);
-      }
-    };
-    if (b.form == ElasticForm::YoungPoisson) {
-      positive_modulus(b.modulus_a, "Young's modulus E");
-    } else {
-      positive_modulus(b.modulus_a, "bulk modulus K");
-      positive_modulus(b.modulus_b, "shear modulus G");
-    }
-    if (b.form == ElasticForm::YoungPoisson) {
-      const double nu = property_value(b.modulus_b);
-      if (!(nu > -1.0 && nu < 0.5))
-        fail(where + ": Poisson's ratio " + std::to_string(nu) + " is outside (-1, 0.5)");
-    }
+    elastic_constants(b, where);
   }
-  for (const Joint& j : joints) {
+}
+
+void ModelCheck::joints() {
+  for (const Joint& j : m_.joints) {
     const std::string where = "joint '" + j.name + "'";
     unique_name(j.name, "joint");
-    check_node(j.node_a, where);
-    check_node(j.node_b, where);
+    node(j.node_a, where);
+    node(j.node_b, where);
     if (j.node_a == j.node_b) fail(where + ": both ends are the same node");
     Mat3 f = j.frame;
     if (!((f * f.transpose() - Mat3::Identity()).norm() < 1e-8 && f.determinant() > 0))
       fail(where + ": frame is not orthonormal and right-handed");
     for (int c = 0; c < 6; ++c) {
-      check_property(j.stiffness[c], where);
-      if (c >= 3 && j.stiffness[c] != kNoProperty &&
-          !(has_rotations[j.node_a] && has_rotations[j.node_b]))
+      property(j.stiffness[c], where);
+      if (c >= 3 && j.stiffness[c] != kNoProperty && !(m_.has_rotations[j.node_a] && m_.has_rotations[j.node_b]))
         fail(where + ": rotational stiffness " + component_name(c) +
              " needs both nodes to carry rotations (use reference nodes with rigid couplings)");
     }
   }
-  for (const GroundSpring& s : ground_springs) {
+}
+
+void ModelCheck::springs_and_masses() {
+  for (const GroundSpring& s : m_.ground_springs) {
     const std::string where = "spring '" + s.name + "'";
     unique_name(s.name, "spring");
     if (s.nodes.empty()) fail(where + ": has no nodes");
     for (int v : s.nodes) {
-      check_node(v, where);
+      node(v, where);
       for (int c = 3; c < 6; ++c)
-        if (s.stiffness[c] != kNoProperty && !has_rotations[v])
-          fail(where + ": rotational stiffness on node " + std::to_string(node_ids[v]) +
-               ", which has no rotations");
+        if (s.stiffness[c] != kNoProperty && !m_.has_rotations[v])
+          fail(where + ": rotational stiffness on node " + std::to_string(m_.node_ids[v]) + ", which has no rotations");
     }
-    for (PropertyId id : s.stiffness) check_property(id, where);
+    for (PropertyId id : s.stiffness) property(id, where);
   }
-  for (const PointMass& m : point_masses) {
-    const std::string where = "point mass '" + m.name + "'";
-    unique_name(m.name, "point mass");
-    check_node(m.node, where);
-    check_property(m.mass, where);
-    if (property_value(m.mass) < 0) fail(where + ": mass is negative");
-    for (PropertyId id : m.inertia) {
-      check_property(id, where);
-      if (id != kNoProperty && !has_rotations[m.node])
+  for (const PointMass& pm : m_.point_masses) {
+    const std::string where = "point mass '" + pm.name + "'";
+    unique_name(pm.name, "point mass");
+    node(pm.node, where);
+    property(pm.mass, where);
+    if (m_.property_value(pm.mass) < 0) fail(where + ": mass is negative");
+    for (PropertyId id : pm.inertia) {
+      property(id, where);
+      if (id != kNoProperty && !m_.has_rotations[pm.node])
         fail(where + ": rotary inertia needs a node with rotations (a reference node)");
     }
   }
-  std::vector<int> coupled_by(n, -1);
-  for (size_t k = 0; k < rigid_couplings.size(); ++k) {
-    const RigidCoupling& r = rigid_couplings[k];
+}
+
+// Rigid couplings (each node coupled once, no chains), fixed DOFs (not on coupled nodes) and
+// the mode families' directions.
+void ModelCheck::couplings_and_fixed() const {
+  std::vector<int> coupled_by(n_, -1);
+  for (size_t k = 0; k < m_.rigid_couplings.size(); ++k) {
+    const RigidCoupling& r = m_.rigid_couplings[k];
     const std::string where = "rigid coupling '" + r.name + "'";
-    check_node(r.reference, where);
-    if (!has_rotations[r.reference]) fail(where + ": the reference node must carry rotations");
+    node(r.reference, where);
+    if (!m_.has_rotations[r.reference]) fail(where + ": the reference node must carry rotations");
     if (r.nodes.empty()) fail(where + ": couples no nodes (is the node set empty?)");
     for (int v : r.nodes) {
-      check_node(v, where);
+      node(v, where);
       if (v == r.reference) fail(where + ": couples its own reference node");
       if (coupled_by[v] >= 0)
-        fail(where + ": node " + std::to_string(node_ids[v]) + " is already coupled by '" +
-             rigid_couplings[coupled_by[v]].name + "'");
+        fail(where + ": node " + std::to_string(m_.node_ids[v]) + " is already coupled by '" +
+             m_.rigid_couplings[coupled_by[v]].name + "'");
       coupled_by[v] = static_cast<int>(k);
     }
   }
-  for (const RigidCoupling& r : rigid_couplings)
+  for (const RigidCoupling& r : m_.rigid_couplings)
     if (coupled_by[r.reference] >= 0)
       fail("rigid coupling '" + r.name + "': its reference node is itself coupled (chains are not supported)");
-  for (const FixedDofs& f : fixed) {
+  for (const FixedDofs& f : m_.fixed)
     for (int v : f.nodes) {
-      check_node(v, "fixed '" + f.name + "'");
+      node(v, "fixed '" + f.name + "'");
       if (coupled_by[v] >= 0)
-        fail("fixed '" + f.name + "': node " + std::to_string(node_ids[v]) +
+        fail("fixed '" + f.name + "': node " + std::to_string(m_.node_ids[v]) +
              " is rigidly coupled; fix the reference node instead");
     }
-  }
-  for (const auto& [family, direction] : mode_families)
-    if (direction < 0 || direction > 2)
-      fail("mode family '" + family + "': direction must be x, y or z");
+  for (const auto& [family, direction] : m_.mode_families)
+    if (direction < 0 || direction > 2) fail("mode family '" + family + "': direction must be x, y or z");
+}
+
+}  // namespace
+
+void Model::validate() const {
+  ModelCheck check(*this);
+  check.nodes_and_properties();
+  check.blocks();
+  check.joints();
+  check.springs_and_masses();
+  check.couplings_and_fixed();
 }
 
 }  // namespace modalcal
