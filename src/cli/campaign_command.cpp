@@ -221,8 +221,8 @@ void print_run(const nlohmann::json& r) {
 }
 
 /// Every data set calibrated, across the farm's ranks, in input order.
-std::vector<nlohmann::json> calibrate_all(const CampaignArgs& args, const std::vector<std::string>& files) {
-  WorkFarm& farm = WorkFarm::join();
+std::vector<nlohmann::json> calibrate_all(const CampaignArgs& args, const std::vector<std::string>& files,
+                                          WorkFarm& farm) {
   if (farm.size() > 1)
     std::printf("%zu data sets across %d MPI ranks, rank 0 handing them out\n", files.size(), farm.size());
   const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
@@ -255,6 +255,7 @@ void plot_runs(const std::string& path, const Problem& problem, const std::vecto
 }
 
 int run_campaign(const CampaignArgs& args) {
+  WorkFarm& farm = WorkFarm::join();  // first: in an MPI job only rank 0 writes to the standard output
   const Problem problem = load_problem(args.problem);
   require_parameters(problem);
   if (args.data.empty() && args.merge.empty())
@@ -269,12 +270,12 @@ int run_campaign(const CampaignArgs& args) {
   if (!args.plot.empty()) check_output_path(args.plot, inputs);
   std::vector<nlohmann::json> runs;
   if (args.merge.empty()) {
-    runs = calibrate_all(args, files);
+    runs = calibrate_all(args, files, farm);
   } else {
     runs = merged_runs(problem, args.merge);
     for (const nlohmann::json& r : runs) print_run(r);
   }
-  if (!WorkFarm::join().is_root()) return 0;  // rank 0 reports
+  if (!farm.is_root()) return 0;  // rank 0 reports
   const long usable = std::count_if(runs.begin(), runs.end(), [](const nlohmann::json& r) { return r["ok"] == true; });
   std::string text;
   char line[320];

@@ -133,14 +133,14 @@ nlohmann::json calibrate_from(const StudyArgs& args, const Problem& problem, dou
 }
 
 int run_starts(const StudyArgs& args) {
-  const WorkFarm& farm = WorkFarm::join();  // in an MPI job, the starts are shared among the ranks
+  WorkFarm& farm = WorkFarm::join();  // in an MPI job, the starts are shared among the ranks
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   const int n = static_cast<int>(problem.parameters.size());
   std::printf("%s: calibrations from the problem's start times", problem.path.c_str());
   for (double f : args.factors) std::printf(" %g", f);
   std::printf("\n");
-  const std::vector<std::string> results = WorkFarm::join().map(
+  const std::vector<std::string> results = farm.map(
       args.factors.size(), [&](size_t k) { return calibrate_from(args, problem, args.factors[k]).dump(); },
       [&](size_t k, const std::string& text) {
         const nlohmann::json r = nlohmann::json::parse(text);
