@@ -544,6 +544,24 @@ TEST(MeshFileErrors, GmshFilesThatAreNotUsableMeshes) {
   ExpectMeshError(WriteTempFile("part.stl", "solid x\n"), {"cannot tell the mesh format", "'.stl'"});
 }
 
+TEST(MeshFileErrors, DamagedExodusHeadersFoundByFuzzingNameTheirCause) {
+  // Each file once crashed or hung the reader (docs/fuzzing.md); copied to a .exo name.
+  auto regression = [](const std::string& name) {
+    std::ifstream in(testing::SourcePath("fuzz/regressions/exodus/" + name), std::ios::binary);
+    const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    EXPECT_FALSE(bytes.empty()) << name;
+    return WriteTempFile(name + ".exo", bytes);
+  };
+  // int64_status with 135 values: Exodus's ex_open read them onto one int on its stack.
+  ExpectMeshError(regression("global_int64_status_with_135_values"),
+                  {"global attribute 'int64_status' has 135 values", "Exodus reads it as one number"});
+  // maximum_name_length 1.1e9: every name buffer was a gigabyte.
+  ExpectMeshError(regression("maximum_name_length_of_a_gigabyte"),
+                  {"maximum_name_length attribute is 1124073534", "at most 256 characters"});
+  // A side set naming an element num_elem counts but no block holds: an index before the blocks.
+  ExpectMeshError(regression("side_set_element_beyond_the_blocks"), {"but the element blocks hold elements 1.."});
+}
+
 TEST(MeshFileErrors, ExodusFilesThatAreNotUsableMeshes) {
   // One tet: fine as written, inverted with two nodes swapped, flat with its apex in the base plane.
   ExodusMesh tet;

@@ -8,6 +8,7 @@
 #include <set>
 
 #include <exodusII.h>
+#include <netcdf.h>  // NC_MAX_NAME
 
 #include "io/mesh_file_readers.hpp"
 #include "support/text_util.hpp"
@@ -31,7 +32,7 @@ class ClassicHeader {
     std::ifstream in(path, std::ios::binary | std::ios::ate);
     file_bytes_ = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
     in.seekg(0);
-    bytes_.resize(kMostBytes);
+    bytes_.resize(static_cast<size_t>(std::min<uint64_t>(file_bytes_, kMostBytes)));  // not 16 MB for a small file
     in.read(bytes_.data(), static_cast<std::streamsize>(bytes_.size()));
     bytes_.resize(static_cast<size_t>(in.gcount()));
     whole_ = in.gcount() < static_cast<std::streamsize>(kMostBytes) || in.peek() == EOF;
@@ -185,10 +186,22 @@ class ClassicHeader {
   void attributes(const std::string& what) {
     const uint64_t n = list(kAttribute, what);
     for (uint64_t a = 0; a < n && !stop_; ++a) {
-      name(what);
+      const std::string attribute = name(what);
       const uint64_t bytes_per_value = type();
-      skip(count("values of a " + what, bytes_per_value) * bytes_per_value, "the values of a " + what);
+      const uint64_t values = count("values of a " + what, bytes_per_value);
+      // ex_open reads these into one number on its stack: more values overrun it (found by fuzzing).
+      if (!stop_ && what == "global attribute" && read_as_one_number(attribute) && values != 1)
+        fail("global attribute '" + attribute + "' has " + std::to_string(values) +
+             " values; Exodus reads it as one number");
+      skip(values * bytes_per_value, "the values of a " + what);
     }
+  }
+  static bool read_as_one_number(const std::string& attribute) {
+    static const std::set<std::string> names = {"api_version",         "api version", "version",
+                                                "floating_point_word_size", "floating point word size",
+                                                "file_size",           "maximum_name_length", "int64_status",
+                                                "nemesis_api_version", "nemesis_file_version"};
+    return names.count(attribute) > 0;
   }
 
   std::string path_;
@@ -212,9 +225,13 @@ class ExodusFile {
     if (id_ < 0) fail("is not an Exodus II file, or the Exodus library cannot open it: " + last_error());
     ex_set_int64_status(id_, EX_ALL_INT64_API);
     // Names longer than the default 32 characters would otherwise come back truncated.
-    const auto name_length = static_cast<int>(ex_inquire_int(id_, EX_INQ_DB_MAX_USED_NAME_LENGTH));
-    ex_set_max_name_length(id_, std::max(name_length, 1));
-    max_name_length_ = std::max(name_length, 1);
+    const int64_t name_length = ex_inquire_int(id_, EX_INQ_DB_MAX_USED_NAME_LENGTH);
+    // The attribute sizes every name buffer; 1.1e9 made each name a gigabyte (found by fuzzing).
+    if (name_length > NC_MAX_NAME)
+      fail("its maximum_name_length attribute is " + std::to_string(name_length) + ", but names have at most " +
+           std::to_string(NC_MAX_NAME) + " characters: the file is probably damaged");
+    max_name_length_ = static_cast<int>(std::max<int64_t>(name_length, 1));
+    ex_set_max_name_length(id_, max_name_length_);
   }
   ~ExodusFile() {
     if (id_ >= 0) ex_close(id_);
@@ -367,6 +384,7 @@ class ExodusReader {
       block_index_.push_back(elements == 0 ? -1 : static_cast<int>(mesh_.blocks.size()));
       if (elements > 0) mesh_.blocks.push_back(std::move(block));
     }
+    elements_in_blocks_ = static_cast<int64_t>(first_element);
   }
 
   void read_node_sets(int64_t count) {
@@ -417,6 +435,9 @@ class ExodusReader {
     if (element < 1 || element > num_elements_)
       file_.fail(what + " refers to element " + std::to_string(element) + ", but the file has elements 1.." +
                  std::to_string(num_elements_));
+    if (element > elements_in_blocks_)  // num_elem counts more elements than the blocks hold
+      file_.fail(what + " refers to element " + std::to_string(element) + ", but the element blocks hold elements 1.." +
+                 std::to_string(elements_in_blocks_) + " (num_elem is " + std::to_string(num_elements_) + ")");
     // The last block starting at or before the element; an empty block starts where the next
     // one does, so this is never an empty block.
     const auto index = static_cast<size_t>(element - 1);
@@ -442,6 +463,7 @@ class ExodusReader {
   std::vector<size_t> block_starts_;  // first element (0-based, over all blocks) of each file block
   std::vector<int> block_index_;      // each file block's index in mesh_.blocks, -1 if left out (empty)
   int64_t num_elements_ = 0;
+  int64_t elements_in_blocks_ = 0;  // the blocks' elements together: side sets may name no other
 };
 
 }  // namespace
