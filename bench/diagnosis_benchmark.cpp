@@ -811,7 +811,7 @@ struct Outcome {
   std::vector<std::string> accepted;      // kept
   std::vector<std::string> accepted_values;
   json accepted_locations = json::array();
-  int steps = 0, dropped = 0;
+  int steps = 0, dropped = 0, exchanges = 0;
   bool first_right = false, all_found = false;
   bool named_right = false;  // the first step's effect or one of its alternatives is a truth effect
   int spurious = 0;  // kept effects that match no truth effect
@@ -837,6 +837,7 @@ struct Args {
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
+  bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
   double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
   std::string command;
@@ -848,6 +849,7 @@ void usage() {
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--mesh-check R] [--refits N] [--no-kind-prior] [--print-diagnosis]\n"
+      "                    [--stop-when-consistent]\n"
       "  --refits, --no-kind-prior: RankingOptions::refits and equal_kind_prior (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
@@ -902,6 +904,7 @@ int main(int argc, char** argv) {
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
+      else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--print-diagnosis") args.print_diagnosis = true;
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
@@ -938,9 +941,10 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.equal_kind_prior ? "" : ", no kind prior", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
+              args.refits, args.equal_kind_prior ? "" : ", no kind prior",
+              args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
               "true parameters against noise-free truth data, J its Jacobian in the parameters (what calibration absorbs, "
@@ -1028,6 +1032,7 @@ int main(int argc, char** argv) {
           options.ranking.significance = args.significance;
           options.ranking.refits = args.refits;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
+          options.stop_when_consistent = args.stop_when_consistent;
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();
@@ -1046,9 +1051,10 @@ int main(int argc, char** argv) {
           o.recommendation = d.recommendation;
           const int np = static_cast<int>(problem.parameters.size());
           std::vector<std::pair<const EffectCandidate*, double>> kept;
+          const std::vector<std::string> accepted = d.accepted();
+          o.exchanges = static_cast<int>(d.exchanges.size());
           for (size_t m = 0; m < d.effects.size(); ++m)
-            if (std::any_of(d.steps.begin(), d.steps.end(),
-                            [&](const DiagnosisStep& s) { return s.effect.candidate.name == d.effects[m].name; }))
+            if (std::count(accepted.begin(), accepted.end(), d.effects[m].name))
               kept.emplace_back(&d.effects[m], d.final_parameters[np + static_cast<Eigen::Index>(m)]);
           for (const auto& [cand, value] : kept) {
             o.accepted.push_back(cand->name);
@@ -1097,6 +1103,9 @@ int main(int argc, char** argv) {
             if (s.location) sj["location"] = {(*s.location)[0], (*s.location)[1], (*s.location)[2]};
             o.steps_json.push_back(sj);
           }
+          for (const DiagnosisStep& x : d.exchanges)
+            o.steps_json.push_back({{"exchanged", x.replaces}, {"for", x.effect.candidate.name}, {"score", x.effect.score()},
+                                    {"replaced_score", x.replaced_score}});
           for (const DroppedEffect& x : d.dropped) o.steps_json.push_back({{"dropped", x.name}, {"chi2_increase", x.chi2_increase}});
         }
       } catch (const std::exception& e) {

@@ -4,8 +4,10 @@
 /// (residual_test.hpp), localize it (localization.hpp), then repeat: rank candidate effects
 /// (effects.hpp), refit the best, and accept the best when its likelihood-ratio test is
 /// significant at the stated level divided by the number of candidates screened in that step;
-/// screen again with the accepted effects in the model, until no candidate is significant or,
-/// after the first step, the residual is consistent with the noise. A backward pass then drops any
+/// screen again with the accepted effects in the model, until no candidate is significant (or,
+/// with DiagnosisOptions::stop_when_consistent, the residual is consistent with the noise). An
+/// exchange pass then revisits each accepted effect with the others in the model, and a backward
+/// pass then drops any
 /// accepted effect whose own likelihood-ratio test, with the others in the model, is no longer
 /// significant at the stated level. The verdict is one: a model-form error when an accepted
 /// effect is kept or the residual test rejects.
@@ -22,6 +24,7 @@
 /// for (const modalcal::DiagnosisStep& s : d.steps) std::cout << s.effect.summary() << "\n";
 /// \endcode
 
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
@@ -61,6 +64,13 @@ struct DiagnosisOptions {
   /// At most this many effects are accepted by the forward steps. Range: >= 0 (0: screen and
   /// refit once, accept nothing).
   int max_steps = 4;
+  /// Stop the forward steps once the residual is consistent with the noise, even when a candidate
+  /// would still pass its own test. Off by default: one candidate's likelihood-ratio test has far
+  /// more power than the omnibus test on every datum, and with several effects at once the first
+  /// accepted one often leaves a residual the omnibus test cannot tell from noise while the next
+  /// effect is still plain to its own test. Each step's test is corrected for what it screens, so
+  /// continuing adds a false acceptance with probability at most the stated level per step.
+  bool stop_when_consistent = false;
   /// The same problem on a finer mesh (same parameters and measured modes), for the
   /// discretization estimate; null: no estimate. The caller loads it (e.g. load_problem with
   /// LoadOptions::refinement 1.5 times the problem's mesh_refinement).
@@ -69,6 +79,11 @@ struct DiagnosisOptions {
   /// for it (DiscretizationEstimate), so that no physical effect is accepted for what the mesh
   /// accounts for.
   bool correct_for_discretization = true;
+  /// The exchange pass, after the forward steps: with two or more accepted effects, take each out
+  /// in turn, screen again with the others in the model, and replace it by the best significant
+  /// refit there when that scores higher. A forward step chooses with the later effects missing,
+  /// and with several effects at once the first accepted often stands in for several.
+  bool exchange = true;
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
   /// significant at the stated level once the others are in the model.
   bool backward = true;
@@ -98,6 +113,10 @@ struct DiagnosisStep {
   /// from it (posterior odds below about 20 to 1).
   std::vector<RankedEffect> alternatives;
   static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
+  /// For an exchange (Diagnosis::exchanges): the accepted effect this one replaced, and that
+  /// effect's score S in the same screen; empty and NaN for a forward step.
+  std::string replaces;
+  double replaced_score = NAN;
 };
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated
@@ -153,6 +172,10 @@ struct Diagnosis {
   std::vector<EffectCandidate> started_with;
   std::vector<DiagnosisStep> steps;       ///< forward steps, in order
   std::vector<EffectRanking> rankings;    ///< each step's ranking (rankings[0] is `ranking`)
+  /// By the exchange pass, in order: each replaced an accepted effect (DiagnosisStep::replaces);
+  /// `step` is the forward step whose effect it replaced, its test is against the model with
+  /// every other effect in.
+  std::vector<DiagnosisStep> exchanges;
   std::vector<DroppedEffect> dropped;     ///< by the backward pass
   /// The effects kept by the backward pass: started_with's, then the accepted ones.
   std::vector<EffectCandidate> effects;

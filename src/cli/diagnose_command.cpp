@@ -33,6 +33,7 @@ struct DiagnoseArgs {
   int max_steps = DiagnosisOptions().max_steps;
   double mesh_check = 1.5;
   bool no_backward = false;
+  bool no_exchange = false;
   std::vector<std::string> add;
   double region_size = CandidateOptions().region_elements;
   std::string json, vtu, plot, map, write_problem;
@@ -240,6 +241,13 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   }
   json["steps"] = nlohmann::json::array();
   for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
+  json["exchanges"] = nlohmann::json::array();
+  for (const DiagnosisStep& x : d.exchanges) {
+    nlohmann::json e = step_json(x);
+    e["replaces"] = x.replaces;
+    e["replaced_score"] = json_number(x.replaced_score);
+    json["exchanges"].push_back(e);
+  }
   json["accepted"] = d.accepted();
   json["dropped"] = nlohmann::json::array();
   for (const DroppedEffect& x : d.dropped)
@@ -352,6 +360,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   options.max_steps = args.max_steps;
   options.candidates.region_elements = args.region_size;
   options.backward = !args.no_backward;
+  options.exchange = !args.no_exchange;
   options.ranking.task_map = farm.task_map();
   if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
@@ -456,6 +465,8 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")
       ->check(CLI::Range(0.0, 4.0));
+  cmd->add_flag("--no-exchange", args->no_exchange,
+                "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
   cmd->add_flag("--no-backward", args->no_backward,
                 "keep every accepted effect (no backward pass dropping those the others explain)");
   cmd->add_option("--add", args->add,

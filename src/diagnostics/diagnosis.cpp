@@ -197,6 +197,32 @@ void localize(const Problem& problem, const Vector& calibrated, const DiagnosisO
 
 bool consistent_with_noise(const FitState& fit) { return fit.test && !fit.test->model_form_error; }
 
+/// The ranking's effect to accept, or null: its best refit when that is significant.
+const RankedEffect* acceptable(const EffectRanking& ranking) {
+  if (ranking.effects.empty() || !ranking.effects.front().refitted || !ranking.effects.front().significant)
+    return nullptr;
+  return &ranking.effects.front();
+}
+
+/// The record of accepting `ranking`'s best effect (acceptable()) as step `number`: its test, its
+/// place in `model` and the alternatives the data hardly tell from it.
+DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, int number) {
+  const RankedEffect& best = ranking.effects.front();
+  DiagnosisStep step;
+  step.step = number;
+  step.effect = best;
+  step.chi2_before = ranking.chi2_before;
+  step.screened = ranking.screened;
+  step.critical_value = ranking.critical_value;
+  step.location = effect_location(model, best.candidate);
+  for (size_t k = 1; k < ranking.effects.size(); ++k) {
+    const RankedEffect& other = ranking.effects[k];
+    if (other.refitted && other.significant && other.score() > best.score() - DiagnosisStep::kAlternativeMargin)
+      step.alternatives.push_back(other);
+  }
+  return step;
+}
+
 /// One forward step: screens the candidates of the model as it now is and accepts the best
 /// refit when it is significant. Returns false when nothing was accepted.
 bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
@@ -205,26 +231,12 @@ bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOption
   if (d->rankings.empty()) d->candidates = candidates;
   d->rankings.push_back(rank_effects(state->problem, state->parameters, candidates, options.ranking));
   const EffectRanking& ranking = d->rankings.back();
-  if (!may_accept || ranking.effects.empty() || !ranking.effects.front().refitted ||
-      !ranking.effects.front().significant)
-    return false;
-  const RankedEffect& best = ranking.effects.front();
-  DiagnosisStep step;
-  step.step = static_cast<int>(d->steps.size()) + 1;
-  step.effect = best;
-  step.chi2_before = ranking.chi2_before;
-  step.screened = ranking.screened;
-  step.critical_value = ranking.critical_value;
-  step.location = effect_location(state->problem.model, best.candidate);
-  for (size_t k = 1; k < ranking.effects.size(); ++k) {
-    const RankedEffect& other = ranking.effects[k];
-    if (other.refitted && other.significant && other.score() > best.score() - DiagnosisStep::kAlternativeMargin)
-      step.alternatives.push_back(other);
-  }
-  d->steps.push_back(step);
+  const RankedEffect* best = acceptable(ranking);
+  if (!may_accept || !best) return false;
+  d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1));
   std::vector<EffectCandidate> effects = state->effects;
-  effects.push_back(best.candidate);
-  *state = make_state(fitted, effects, best.parameters, options.test);
+  effects.push_back(best->candidate);
+  *state = make_state(fitted, effects, best->parameters, options.test);
   return true;
 }
 
@@ -247,35 +259,94 @@ std::string calibrate_without(const Problem& fitted, const LoopState& state, siz
   return outcome.str();
 }
 
+/// The likelihood-ratio statistic of `with` against `without` (one effect fewer): the chi-square
+/// it gains, or without a stated noise the F statistic, the gain over `with`'s residual per
+/// degree of freedom (the residual with every effect estimates the noise).
+double lr_statistic(const Diagnosis& d, const LoopState& without, const LoopState& with) {
+  const double increase = without.fit.statistic - with.fit.statistic;
+  if (d.noise_known) return increase;
+  const int dof = d.rankings.front().num_data - static_cast<int>(with.parameters.size());
+  return increase / (with.fit.statistic / std::max(1, dof));
+}
+
+/// `state` without its effect `k`, the rest refitted; nullopt when the calibration cannot start.
+std::vector<std::optional<LoopState>> states_without_each(const Problem& fitted, const LoopState& state,
+                                                          const DiagnosisOptions& options) {
+  const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
+  const std::vector<std::string> refits =
+      map(state.effects.size(), [&](size_t k) { return calibrate_without(fitted, state, k, options); });
+  std::vector<std::optional<LoopState>> without(state.effects.size());
+  for (size_t k = 0; k < state.effects.size(); ++k) {
+    const Vector calibrated = TaskCodec(refits[k]).get_vector();
+    if (calibrated.size() > 0) without[k] = make_state(fitted, effects_without(state, k), calibrated, options.test);
+  }
+  return without;
+}
+
 /// The backward pass: while the weakest effect in the model (the one whose removal raises the
 /// misfit least; the problem's own enabled effects included) is below the critical value at the
 /// stated level, it is dropped and the rest refitted.
 void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
   const double critical = chi_square_critical_value(options.ranking.significance, 1);
   while (!state->effects.empty()) {
-    std::optional<LoopState> weakest;
+    std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options);
+    size_t weakest = without.size();
     double weakest_increase = INFINITY;
-    std::string weakest_name;
-    const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
-    const std::vector<std::string> refits =
-        map(state->effects.size(), [&](size_t k) { return calibrate_without(fitted, *state, k, options); });
-    for (size_t k = 0; k < state->effects.size(); ++k) {
-      const Vector calibrated = TaskCodec(refits[k]).get_vector();
-      if (calibrated.size() == 0) continue;
-      std::optional<LoopState> without = make_state(fitted, effects_without(*state, k), calibrated, options.test);
-      const double increase = without->fit.statistic - state->fit.statistic;
-      // Without a stated noise the residual with every effect estimates it (an F-test).
-      const int dof = d->rankings.front().num_data - static_cast<int>(state->parameters.size());
-      const double statistic = d->noise_known ? increase : increase / (state->fit.statistic / std::max(1, dof));
+    for (size_t k = 0; k < without.size(); ++k) {
+      if (!without[k]) continue;
+      const double statistic = lr_statistic(*d, *without[k], *state);
       if (statistic < weakest_increase) {
         weakest_increase = statistic;
-        weakest_name = state->effects[k].name;
-        weakest = std::move(without);
+        weakest = k;
       }
     }
-    if (!weakest || weakest_increase >= critical) return;
-    d->dropped.push_back({weakest_name, weakest_increase, critical});
-    *state = std::move(*weakest);
+    if (weakest == without.size() || weakest_increase >= critical) return;
+    d->dropped.push_back({state->effects[weakest].name, weakest_increase, critical});
+    *state = std::move(*without[weakest]);
+  }
+}
+
+/// The step (forward or exchange) that put the effect named `name` into the model, or null.
+const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name) {
+  for (auto it = d.exchanges.rbegin(); it != d.exchanges.rend(); ++it)
+    if (it->effect.candidate.name == name) return &*it;
+  for (const DiagnosisStep& s : d.steps)
+    if (s.effect.candidate.name == name) return &s;
+  return nullptr;
+}
+
+/// The exchange pass. Each forward step chose its effect with the later ones missing from the
+/// model, and with several effects at once the first often stands in for them together (one
+/// region's mass scale for two point masses). With two or more accepted, each in turn is taken out,
+/// the rest refitted, and the candidates screened again with the others in the model; the best
+/// significant refit there replaces it when its score S beats what the accepted effect scores
+/// there (its own likelihood-ratio statistic less its kind's penalty).
+void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
+  const size_t first = d->started_with.size();
+  if (state->effects.size() < first + 2) return;
+  const Eigen::Index np = static_cast<Eigen::Index>(fitted.parameters.size());
+  for (size_t k = first; k < state->effects.size(); ++k) {
+    const Vector calibrated = TaskCodec(calibrate_without(fitted, *state, k, options)).get_vector();
+    const DiagnosisStep* incumbent = step_that_added(*d, state->effects[k].name);
+    if (calibrated.size() == 0 || !incumbent) continue;
+    const LoopState without = make_state(fitted, effects_without(*state, k), calibrated, options.test);
+    const EffectRanking ranking = rank_effects(without.problem, without.parameters,
+                                               generate_candidates(without.problem, options.candidates), options.ranking);
+    const RankedEffect* best = acceptable(ranking);
+    const double incumbent_score = lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
+    if (!best || best->candidate.name == state->effects[k].name || !(best->score() > incumbent_score)) continue;
+    DiagnosisStep exchange = step_accepting(ranking, without.problem.model, incumbent->step);
+    exchange.replaces = state->effects[k].name;
+    exchange.replaced_score = incumbent_score;
+    // best->parameters are without's, then the new effect's value: it takes effect k's place.
+    std::vector<EffectCandidate> effects = state->effects;
+    effects[k] = best->candidate;
+    Vector p(state->parameters.size());
+    p.head(np) = best->parameters.head(np);
+    for (size_t i = 0, j = static_cast<size_t>(np); i < effects.size(); ++i)
+      p[np + static_cast<Eigen::Index>(i)] = best->parameters[static_cast<Eigen::Index>(i == k ? without.parameters.size() : j++)];
+    d->exchanges.push_back(std::move(exchange));
+    *state = make_state(fitted, effects, p, options.test);
   }
 }
 
@@ -320,10 +391,8 @@ std::string effects_text(const Diagnosis& d) {
   }
   std::string text = "Model-form error. Add";
   bool first = true;
-  for (const DiagnosisStep& s : d.steps) {
-    const bool dropped = std::any_of(d.dropped.begin(), d.dropped.end(),
-                                     [&](const DroppedEffect& x) { return x.name == s.effect.candidate.name; });
-    if (dropped) continue;
+  for (const std::string& name : d.accepted()) {
+    const DiagnosisStep& s = *step_that_added(d, name);
     std::snprintf(numbers, sizeof numbers, " (%s %.4g -> %.4g)", chi2_text(d.noise_known).c_str(), s.chi2_before,
                   s.effect.chi2_after);
     text += std::string(first ? " " : "; then ") + s.effect.candidate.name + ": " + s.effect.summary() + numbers;
@@ -435,11 +504,12 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   LoopState state = starting_state(fitted, d.started_with, calibrated, options);
   if (!d.started_with.empty()) d.before = state.fit;
   for (int k = 0; k < std::max(1, options.max_steps); ++k) {
-    if (k > 0 && consistent_with_noise(state.fit)) break;
+    if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
     if (!forward_step(fitted, &state, options, k < options.max_steps, &d)) break;
   }
   d.ranking = d.rankings.front();
   d.map = screen_map(problem.model, d.ranking);
+  if (options.exchange) exchange_pass(fitted, &state, options, &d);
   if (options.backward) backward_pass(fitted, &state, options, &d);
 
   d.effects = state.effects;
@@ -459,8 +529,7 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
 std::vector<std::string> Diagnosis::accepted() const {
   std::vector<std::string> names;
   for (const EffectCandidate& c : effects)
-    if (std::any_of(steps.begin(), steps.end(), [&](const DiagnosisStep& s) { return s.effect.candidate.name == c.name; }))
-      names.push_back(c.name);
+    if (step_that_added(*this, c.name)) names.push_back(c.name);
   return names;
 }
 
@@ -548,6 +617,12 @@ std::string format_steps(const Diagnosis& d) {
                     a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
       text += line;
     }
+  }
+  for (const DiagnosisStep& x : d.exchanges) {
+    std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
+                  x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
+                  x.replaced_score);
+    text += line;
   }
   for (const DroppedEffect& x : d.dropped) {
     std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n", x.name.c_str(),
