@@ -61,37 +61,9 @@ std::string cell(double v, const char* format) {
   return buffer;
 }
 
-int run_compare(const CompareArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
-  const Vector p = choose_parameters(&problem, args.params);
-  ComparisonOptions options;
-  options.unpaired_mac = args.unpaired_mac;
-  const ModalComparison c = compare_modes(problem, p, options);
-  const std::vector<std::string> labels = measured_labels(problem);
-  int width = 14;  // of the label column
-  for (const std::string& l : labels) width = std::max(width, static_cast<int>(l.size()));
-
-  std::printf("%s: %zu measured modes, %d model modes computed, parameters (%s%s):", problem.path.c_str(),
-              problem.measured.size(), static_cast<int>(c.model_hz.size()), args.params.source.c_str(),
-              args.params.assignments.empty() ? "" : ", --set");
-  for (size_t j = 0; j < problem.parameters.size(); ++j)
-    std::printf(" %s = %.6g", problem.parameters[j].name.c_str(), p[static_cast<Eigen::Index>(j)]);
-  std::printf("\n");
-  std::fputs(hidden_effect_text(problem).c_str(), stdout);
-  std::printf("\n%-*s %10s %14s %14s %9s %7s %7s\n", width, "measured", "model mode", "measured [Hz]", "model [Hz]", "error %",
-              "MAC", "XOR");
-  for (const ComparedPair& pair : c.pairs)
-    std::printf("%-*s %10d %14.4f %14.4f %9.4f %7s %7s\n", width, labels[pair.measured].c_str(), pair.model + 1,
-                pair.measured_hz, pair.model_hz, pair.error_percent, cell(pair.mac >= 0 ? pair.mac : NAN, "%.4f").c_str(),
-                cell(pair.cross_orthogonality, "%.4f").c_str());
-  std::printf("unpaired measured modes (MAC < %g):", options.unpaired_mac);
-  for (int index : c.unpaired_measured)
-    std::printf(" %s (MAC %.3f with model mode %d)", labels[c.pairs[index].measured].c_str(), c.pairs[index].mac,
-                c.pairs[index].model + 1);
-  std::printf("%s\nunpaired model modes:", c.unpaired_measured.empty() ? " none" : "");
-  for (int k : c.unpaired_model) std::printf(" %d (%.4f Hz)", k + 1, c.model_hz[k]);
-  std::printf("%s\n", c.unpaired_model.empty() ? " none" : "");
-
+/// The MAC matrix, COMAC per sensor DOF and the SEREP cross-orthogonality as text.
+void print_correlation_matrices(const Problem& problem, const ModalComparison& c, const std::vector<std::string>& labels,
+                                int width) {
   std::printf("\nMAC matrix (rows: measured modes, columns: model modes)\n%-*s", width, "");
   for (Eigen::Index k = 0; k < c.mac.cols(); ++k) std::printf(" %5d", static_cast<int>(k + 1));
   std::printf("\n");
@@ -123,8 +95,40 @@ int run_compare(const CompareArgs& args) {
   } else {
     std::printf("\nno cross-orthogonality: %s\n", c.cross_orthogonality_note.c_str());
   }
-  for (const std::string& w : c.warnings) std::printf("warning: %s\n", w.c_str());
+}
 
+/// The pairing table, the unpaired modes, the MAC matrix, COMAC and cross-orthogonality as text.
+void print_comparison(const Problem& problem, const Vector& p, const ModalComparison& c, const CompareArgs& args,
+                      const std::vector<std::string>& labels) {
+  int width = 14;  // of the label column
+  for (const std::string& l : labels) width = std::max(width, static_cast<int>(l.size()));
+  std::printf("%s: %zu measured modes, %d model modes computed, parameters (%s%s):", problem.path.c_str(),
+              problem.measured.size(), static_cast<int>(c.model_hz.size()), args.params.source.c_str(),
+              args.params.assignments.empty() ? "" : ", --set");
+  for (size_t j = 0; j < problem.parameters.size(); ++j)
+    std::printf(" %s = %.6g", problem.parameters[j].name.c_str(), p[static_cast<Eigen::Index>(j)]);
+  std::printf("\n");
+  std::fputs(hidden_effect_text(problem).c_str(), stdout);
+  std::printf("\n%-*s %10s %14s %14s %9s %7s %7s\n", width, "measured", "model mode", "measured [Hz]", "model [Hz]", "error %",
+              "MAC", "XOR");
+  for (const ComparedPair& pair : c.pairs)
+    std::printf("%-*s %10d %14.4f %14.4f %9.4f %7s %7s\n", width, labels[pair.measured].c_str(), pair.model + 1,
+                pair.measured_hz, pair.model_hz, pair.error_percent, cell(pair.mac >= 0 ? pair.mac : NAN, "%.4f").c_str(),
+                cell(pair.cross_orthogonality, "%.4f").c_str());
+  std::printf("unpaired measured modes (MAC < %g):", args.unpaired_mac);
+  for (int index : c.unpaired_measured)
+    std::printf(" %s (MAC %.3f with model mode %d)", labels[c.pairs[index].measured].c_str(), c.pairs[index].mac,
+                c.pairs[index].model + 1);
+  std::printf("%s\nunpaired model modes:", c.unpaired_measured.empty() ? " none" : "");
+  for (int k : c.unpaired_model) std::printf(" %d (%.4f Hz)", k + 1, c.model_hz[k]);
+  std::printf("%s\n", c.unpaired_model.empty() ? " none" : "");
+  print_correlation_matrices(problem, c, labels, width);
+  for (const std::string& w : c.warnings) std::printf("warning: %s\n", w.c_str());
+}
+
+/// The comparison as JSON (docs/output-format.md, "compare").
+nlohmann::json comparison_json(const Problem& problem, const Vector& p, const ModalComparison& c,
+                               const CompareArgs& args) {
   nlohmann::json json;
   json["problem"] = problem.path;
   json["parameter_source"] = args.params.source;
@@ -142,7 +146,7 @@ int run_compare(const CompareArgs& args) {
                              {"error_percent", pair.error_percent},
                              {"mac", pair.mac >= 0 ? nlohmann::json(pair.mac) : nlohmann::json()},
                              {"cross_orthogonality", json_number(pair.cross_orthogonality)}});
-  json["unpaired_mac"] = options.unpaired_mac;
+  json["unpaired_mac"] = args.unpaired_mac;
   json["unpaired_measured"] = nlohmann::json::array();
   for (int index : c.unpaired_measured)
     json["unpaired_measured"].push_back({{"measured", c.pairs[index].measured + 1},
@@ -171,10 +175,12 @@ int run_compare(const CompareArgs& args) {
     json["cross_orthogonality_note"] = c.cross_orthogonality_note;
   }
   json["warnings"] = c.warnings;
-  for (const std::string& plot : {args.mac_plot, args.error_plot})
-    if (!plot.empty()) check_output_path(plot, problem.source_files);
-  write_json(args.json, json, problem);
+  return json;
+}
 
+/// The MAC matrix as a heat map and the frequency errors as bars, where asked for.
+void plot_comparison(const Problem& problem, const ModalComparison& c, const CompareArgs& args,
+                     const std::vector<std::string>& labels) {
   const std::string name = problem.name.empty() ? problem.path : problem.name;
   if (!args.mac_plot.empty()) {
     HeatMap map;
@@ -195,6 +201,21 @@ int run_compare(const CompareArgs& args) {
     chart.ylabel = "frequency error (model / measured - 1) [%]";
     plot_bars(args.error_plot, "frequency errors (measured / model mode), " + name, chart);
   }
+}
+
+int run_compare(const CompareArgs& args) {
+  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  const Vector p = choose_parameters(&problem, args.params);
+  ComparisonOptions options;
+  options.unpaired_mac = args.unpaired_mac;
+  const ModalComparison c = compare_modes(problem, p, options);
+  const std::vector<std::string> labels = measured_labels(problem);
+  print_comparison(problem, p, c, args, labels);
+  const nlohmann::json json = comparison_json(problem, p, c, args);
+  for (const std::string& plot : {args.mac_plot, args.error_plot})
+    if (!plot.empty()) check_output_path(plot, problem.source_files);
+  write_json(args.json, json, problem);
+  plot_comparison(problem, c, args, labels);
   return 0;
 }
 
