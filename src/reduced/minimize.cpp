@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <optional>
 
 #include "modalcal/reduced.hpp"
 #include "reduced/scaled_problem.hpp"
@@ -134,134 +135,171 @@ Vector damped_newton_direction(const ScaledProblem& problem, const Point& curren
 
 }  // namespace
 
+namespace {
+
+/// One run of minimize_reduced(): the state its iterations share.
+class ReducedRun {
+ public:
+  ReducedRun(Objective& objective, const ReducedOptions& options)
+      : objective_(objective),
+        options_(options),
+        second_order_(options.method != ReducedOptions::Method::Lbfgs),
+        newton_(options.method == ReducedOptions::Method::Newton),
+        need_(second_order_ ? Need::Jacobian : Need::Gradient),
+        problem_(objective, options),
+        memory_(options.memory) {}
+
+  ReducedSummary run(const Vector& p0) {
+    summary_.method = newton_ ? "reduced Newton" : second_order_ ? "reduced Gauss-Newton" : "reduced L-BFGS";
+    summary_.initial = p0;
+    const Vector x0 = problem_.project(problem_.scaling().to_scaled(p0));
+    // Steps are capped per variable in units of O(1): scaled variables are O(1) already; an
+    // unscaled one is measured against its starting magnitude, so that the cap limits relative
+    // changes and does not itself cripple the unscaled case.
+    unit_ = Vector::Ones(x0.size());
+    for (int j = 0; j < x0.size(); ++j)
+      if (problem_.scaling().scaling(j) == Scaling::None && x0[j] != 0) unit_[j] = std::abs(x0[j]);
+    current_ = problem_.evaluate(x0, need_);
+    if (!current_.ok)
+      return finish(TerminationType::ForwardSolveFailed, "cannot evaluate the start: " + current_.message);
+    summary_.initial_objective = current_.value;
+    record(0, 0);
+    tolerance_ = std::max(options_.gradient_tolerance,
+                          options_.relative_gradient_tolerance * summary_.history.front().gradient_norm);
+    for (int k = 1; k <= options_.max_iterations; ++k)
+      if (std::optional<ReducedSummary> done = iterate(k)) return *done;
+    if (summary_.history.back().gradient_norm <= tolerance_)
+      return finish(TerminationType::Converged, "projected gradient norm below tolerance");
+    return finish(TerminationType::MaxIterations, "reached max_iterations = " + std::to_string(options_.max_iterations));
+  }
+
+ private:
+  using Point = ScaledProblem::Point;
+
+  /// Iteration k from current_: the summary when the run ends in it.
+  std::optional<ReducedSummary> iterate(int k) {
+    summary_.iterations = k - 1;
+    const double gradient_norm = summary_.history.back().gradient_norm;
+    if (gradient_norm <= tolerance_) {
+      char message[160];
+      std::snprintf(message, sizeof message, "projected gradient norm %.3e <= tolerance %.3e", gradient_norm, tolerance_);
+      return finish(TerminationType::Converged, message);
+    }
+    Vector direction;
+    Point next = step(&direction);
+    if (!next.ok) return finish(TerminationType::LineSearchFailed, next.message);
+    const Vector s = next.x - current_.x;
+    if (second_order_) {
+      use_exact_hessian_ = newton_ && next.value > 0.8 * current_.value;
+      next = problem_.evaluate(next.x, use_exact_hessian_ ? Need::Hessian : Need::Jacobian);
+      if (!next.ok)
+        return finish(TerminationType::ForwardSolveFailed, "derivatives at the accepted point: " + next.message);
+      // Full steps mean the Gauss-Newton model is good: trust it more; backtracking: less.
+      damping_ = (s - direction).norm() <= 1e-12 * direction.norm() ? damping_ / 10 : std::min(damping_ * 10, 1.0);
+      damping_ = std::max(damping_, 1e-12);
+    } else {
+      memory_.update(s, next.gradient - current_.gradient);
+    }
+    const double decrease = current_.value - next.value;
+    current_ = next;
+    record(k, s.norm());
+    summary_.iterations = k;
+    if (options_.function_tolerance > 0 &&
+        decrease <= options_.function_tolerance * std::max(std::abs(current_.value), 1.0)) {
+      char message[160];
+      std::snprintf(message, sizeof message,
+                    "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
+                    decrease, options_.function_tolerance);
+      return finish(TerminationType::Converged, message);
+    }
+    return std::nullopt;
+  }
+
+  /// The line search from current_ along the method's direction (set in *direction): the
+  /// damped second-order step or L-BFGS's, steepest descent when that is no descent direction
+  /// or a stale quasi-Newton model fails the search.
+  Point step(Vector* direction) {
+    const std::vector<bool> active = problem_.active_set(current_);
+    *direction = second_order_ ? damped_newton_direction(problem_, current_, active, newton_ && use_exact_hessian_, damping_)
+                               : Vector(-memory_.apply_inverse(current_.gradient, active));
+    if (!(direction->dot(current_.gradient) < 0)) {
+      *direction = -masked(current_.gradient, active);  // not a descent direction: steepest descent
+      memory_.clear();
+    }
+    double length = 1.0;
+    if (!second_order_ && memory_.empty()) length = std::min(1.0, 1.0 / longest(*direction));
+    length = std::min(length, options_.max_step / longest(*direction));
+    Point next = problem_.line_search(current_, *direction, need_, length);
+    if (!next.ok && !second_order_ && !memory_.empty()) {
+      memory_.clear();  // a stale quasi-Newton model: retry along the steepest descent
+      *direction = -masked(current_.gradient, active);
+      next = problem_.line_search(current_, *direction, need_, std::min(1.0, options_.max_step) / longest(*direction));
+    }
+    return next;
+  }
+
+  double longest(const Vector& d) const { return d.cwiseQuotient(unit_).lpNorm<Eigen::Infinity>(); }
+
+  void record(int iteration, double step) {
+    IterationRecord r;
+    r.iteration = iteration;
+    r.objective = current_.value;
+    r.gradient_norm = problem_.projected_gradient(current_).norm();
+    r.step_norm = step;
+    r.parameter_error = parameter_error(objective_.problem(), current_.p);
+    r.forward_solves = objective_.forward_solves() - forward_before_;
+    r.p = current_.p;
+    summary_.history.push_back(r);
+    if (options_.progress) options_.progress(r);
+  }
+
+  ReducedSummary finish(TerminationType type, const std::string& message) {
+    summary_.termination = type;
+    summary_.message = message;
+    if (current_.ok) {
+      summary_.final = current_.p;
+      summary_.final_objective = current_.value;
+    }
+    summary_.forward_solves = objective_.forward_solves() - forward_before_;
+    summary_.linear_solves = objective_.linear_solves() - linear_before_;
+    summary_.failed_evaluations = problem_.failed_evaluations();
+    summary_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    std::vector<double> gradients;
+    for (const IterationRecord& r : summary_.history) gradients.push_back(r.gradient_norm);
+    summary_.convergence_order = estimate_convergence_order(gradients);
+    return summary_;
+  }
+
+  Objective& objective_;
+  const ReducedOptions& options_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  const int forward_before_ = objective_.forward_solves(), linear_before_ = objective_.linear_solves();
+  // Gauss-Newton and Newton share the damped second-order step; they differ in the model matrix.
+  const bool second_order_, newton_;
+  const Need need_;
+  ScaledProblem problem_;
+  ReducedSummary summary_;
+  Vector unit_;
+  Point current_;
+  double tolerance_ = 0;
+  LbfgsMemory memory_;
+  // Fletcher-Xu hybrid for Newton: Gauss-Newton while it reduces J by 20 % per step (it is
+  // globally better behaved and needs no second derivatives), the exact Hessian once it slows
+  // down, where only the exact Hessian converges quadratically.
+  bool use_exact_hessian_ = false;
+  // Levenberg parameter, relative to the Gauss-Newton diagonal: strong at first, so that steps
+  // from a far start stay gradient-like and do not leap into another basin; relaxed by 10 after
+  // every full step.
+  double damping_ = 1.0;
+};
+
+}  // namespace
+
 ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("ReducedOptions: " + error);
   objective.require_parameters(p0, "minimize_reduced");
-  const auto start = std::chrono::steady_clock::now();
-  const int forward_before = objective.forward_solves(), linear_before = objective.linear_solves();
-  // Gauss-Newton and Newton share the damped second-order step; they differ in the model matrix.
-  const bool second_order = options.method != ReducedOptions::Method::Lbfgs;
-  const bool newton = options.method == ReducedOptions::Method::Newton;
-  const Need need = second_order ? Need::Jacobian : Need::Gradient;
-  ScaledProblem problem(objective, options);
-
-  ReducedSummary summary;
-  summary.method = newton ? "reduced Newton" : second_order ? "reduced Gauss-Newton" : "reduced L-BFGS";
-  summary.initial = p0;
-  auto finish = [&](TerminationType type, const std::string& message, const Point& best) {
-    summary.termination = type;
-    summary.message = message;
-    if (best.ok) {
-      summary.final = best.p;
-      summary.final_objective = best.value;
-    }
-    summary.forward_solves = objective.forward_solves() - forward_before;
-    summary.linear_solves = objective.linear_solves() - linear_before;
-    summary.failed_evaluations = problem.failed_evaluations();
-    summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::vector<double> gradients;
-    for (const IterationRecord& r : summary.history) gradients.push_back(r.gradient_norm);
-    summary.convergence_order = estimate_convergence_order(gradients);
-    return summary;
-  };
-  auto record = [&](int iteration, const Point& point, double step) {
-    IterationRecord r;
-    r.iteration = iteration;
-    r.objective = point.value;
-    r.gradient_norm = problem.projected_gradient(point).norm();
-    r.step_norm = step;
-    r.parameter_error = parameter_error(objective.problem(), point.p);
-    r.forward_solves = objective.forward_solves() - forward_before;
-    r.p = point.p;
-    summary.history.push_back(r);
-    if (options.progress) options.progress(r);
-  };
-
-  const Vector x0 = problem.project(problem.scaling().to_scaled(p0));
-  // Steps are capped per variable in units of O(1): scaled variables are O(1) already; an
-  // unscaled one is measured against its starting magnitude, so that the cap limits relative
-  // changes and does not itself cripple the unscaled case.
-  Vector unit = Vector::Ones(x0.size());
-  for (int j = 0; j < x0.size(); ++j)
-    if (problem.scaling().scaling(j) == Scaling::None && x0[j] != 0) unit[j] = std::abs(x0[j]);
-  auto longest = [&](const Vector& d) { return d.cwiseQuotient(unit).lpNorm<Eigen::Infinity>(); };
-  Point current = problem.evaluate(x0, need);
-  if (!current.ok) return finish(TerminationType::ForwardSolveFailed, "cannot evaluate the start: " + current.message, current);
-  summary.initial_objective = current.value;
-  record(0, current, 0);
-  const double initial_gradient = summary.history.front().gradient_norm;
-  const double tolerance = std::max(options.gradient_tolerance, options.relative_gradient_tolerance * initial_gradient);
-
-  LbfgsMemory memory(options.memory);
-  // Fletcher-Xu hybrid for Newton: Gauss-Newton while it reduces J by 20 % per step (it is
-  // globally better behaved and needs no second derivatives), the exact Hessian once it slows
-  // down, where only the exact Hessian converges quadratically.
-  bool use_exact_hessian = false;
-  // Levenberg parameter, relative to the Gauss-Newton diagonal: strong at first, so that steps
-  // from a far start stay gradient-like and do not leap into another basin; relaxed by 10 after
-  // every full step.
-  double damping = 1.0;
-  for (int k = 1; k <= options.max_iterations; ++k) {
-    const double gradient_norm = summary.history.back().gradient_norm;
-    if (gradient_norm <= tolerance) {
-      summary.iterations = k - 1;
-      char message[160];
-      std::snprintf(message, sizeof message, "projected gradient norm %.3e <= tolerance %.3e", gradient_norm, tolerance);
-      return finish(TerminationType::Converged, message, current);
-    }
-    const std::vector<bool> active = problem.active_set(current);
-    Vector direction = second_order ? damped_newton_direction(problem, current, active, newton && use_exact_hessian, damping)
-                                    : Vector(-memory.apply_inverse(current.gradient, active));
-    if (!(direction.dot(current.gradient) < 0)) {
-      direction = -masked(current.gradient, active);  // not a descent direction: steepest descent
-      memory.clear();
-    }
-    double step = 1.0;
-    if (!second_order && memory.empty()) step = std::min(1.0, 1.0 / longest(direction));
-    step = std::min(step, options.max_step / longest(direction));
-    Point next = problem.line_search(current, direction, need, step);
-    if (!next.ok && !second_order && !memory.empty()) {
-      memory.clear();  // a stale quasi-Newton model: retry along the steepest descent
-      direction = -masked(current.gradient, active);
-      next = problem.line_search(current, direction, need, std::min(1.0, options.max_step) / longest(direction));
-    }
-    if (!next.ok) {
-      summary.iterations = k - 1;
-      return finish(TerminationType::LineSearchFailed, next.message, current);
-    }
-    const Vector s = next.x - current.x;
-    if (second_order) {
-      use_exact_hessian = newton && next.value > 0.8 * current.value;
-      next = problem.evaluate(next.x, use_exact_hessian ? Need::Hessian : Need::Jacobian);
-      if (!next.ok) {
-        summary.iterations = k - 1;
-        return finish(TerminationType::ForwardSolveFailed, "derivatives at the accepted point: " + next.message, current);
-      }
-    }
-    if (second_order) {
-      // Full steps mean the Gauss-Newton model is good: trust it more; backtracking: less.
-      damping = (s - direction).norm() <= 1e-12 * direction.norm() ? damping / 10 : std::min(damping * 10, 1.0);
-      damping = std::max(damping, 1e-12);
-    } else {
-      memory.update(s, next.gradient - current.gradient);
-    }
-    const double decrease = current.value - next.value;
-    current = next;
-    record(k, current, s.norm());
-    summary.iterations = k;
-    if (options.function_tolerance > 0 && decrease <= options.function_tolerance * std::max(std::abs(current.value), 1.0)) {
-      char message[160];
-      std::snprintf(message, sizeof message,
-                    "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
-                    decrease, options.function_tolerance);
-      return finish(TerminationType::Converged, message, current);
-    }
-  }
-  if (summary.history.back().gradient_norm <= tolerance)
-    return finish(TerminationType::Converged, "projected gradient norm below tolerance", current);
-  return finish(TerminationType::MaxIterations,
-                "reached max_iterations = " + std::to_string(options.max_iterations), current);
+  return ReducedRun(objective, options).run(p0);
 }
 
 std::string ReducedSummary::BriefReport() const {
