@@ -34,26 +34,111 @@ double dual_infeasibility(const Vector& gradient, const Vector& q, const Bounds&
   return worst;
 }
 
+/// The bounds of the parameters q, the last block of the full-space variables.
+Bounds parameter_bounds(FullSpaceProblem& problem) {
+  const int nv = problem.num_variables(), np = problem.num_parameters();
+  Vector lower(nv), upper(nv);
+  problem.bounds(lower.data(), upper.data());
+  return {lower.tail(np), upper.tail(np)};
+}
+
+/// What the callback sees of iteration k (no complementarity or barrier here).
+NewtonIteration iteration_info(int k, double objective, double primal, double dual, double step_length, double shift) {
+  NewtonIteration info;
+  info.iteration = k;
+  info.objective = objective;
+  info.primal_infeasibility = primal;
+  info.dual_infeasibility = dual;
+  info.step_length = step_length;
+  info.hessian_shift = shift;
+  return info;
+}
+
+std::string outside_newton_region_message(bool accepted, double kkt_error) {
+  return "block Newton: " +
+         std::string(accepted ? "three steps in a row were cut by the line search or the trust region"
+                              : "the filter line search found no acceptable step") +
+         " (KKT error " + std::to_string(kkt_error) + "): the start is outside Newton's region, or the derivatives are wrong";
+}
+
+/// Ipopt's filter line search (Waechter & Biegler 2006, sec. 2.3) on theta = |c|_1 and f:
+/// iterates may leave the constraints far behind while f falls, which is what lets the full
+/// space cut across the curved valleys a feasible method must follow.
+class FilterLineSearch {
+ public:
+  struct Outcome {
+    bool accepted = false;
+    double alpha = 0;
+  };
+
+  /// Backtracks from a full step along dx from x (objective f0, infeasibility theta, slope the
+  /// objective's directional derivative); the first call sets the filter's envelope.
+  Outcome search(FullSpaceProblem& problem, const Vector& x, const Vector& dx, double f0, double theta, double slope) {
+    if (filter_.empty() && theta_max_ == 0) {
+      theta_max_ = 1e4 * std::max(1.0, theta);
+      theta_min_ = 1e-4 * std::max(1.0, theta);
+    }
+    Outcome out;
+    bool f_type = false;
+    for (double alpha = 1; alpha >= 1e-10; alpha *= 0.5) {
+      const Vector trial = x + alpha * dx;
+      const double f = problem.objective(trial.data());
+      Vector ct(problem.num_constraints());
+      problem.constraints(trial.data(), ct.data());
+      const double theta_trial = ct.lpNorm<1>();
+      if (!std::isfinite(f) || !std::isfinite(theta_trial) || theta_trial > theta_max_ || dominated(theta_trial, f))
+        continue;
+      // Switching condition: a descent direction for f that dominates the infeasibility.
+      f_type = slope < 0 && alpha * std::pow(-slope, 2.3) > std::pow(theta, 1.1) && theta <= theta_min_;
+      if (f_type ? f <= f0 + 1e-4 * alpha * slope : (theta_trial <= (1 - 1e-5) * theta || f <= f0 - 1e-5 * theta)) {
+        out = {true, alpha};
+        break;
+      }
+    }
+    if (out.accepted && !f_type) filter_.push_back({(1 - 1e-5) * theta, f0 - 1e-5 * theta});
+    return out;
+  }
+
+ private:
+  struct Entry {
+    double theta, f;
+  };
+  bool dominated(double theta, double f) const {
+    return std::any_of(filter_.begin(), filter_.end(), [&](const Entry& e) { return theta >= e.theta && f >= e.f; });
+  }
+  std::vector<Entry> filter_;  // (theta, f) pairs no trial point may be worse in both
+  double theta_max_ = 0, theta_min_ = 0;
+};
+
+/// The Newton step on q from the reduced system: the reduced Hessian with an inertia correction
+/// (a shift that makes its smallest eigenvalue 1e-4 of its largest where it was below that, on the
+/// null space of the constraints only), in a trust box of `radius` inside the bounds. Returns
+/// the box QP's solution and the shift (*shift).
+BoxQpResult reduced_newton_step(const BlockKktSystem& kkt, const Vector& q, const Bounds& bounds, double radius,
+                                double* shift) {
+  Matrix H = kkt.reduced_hessian();
+  const Eigen::SelfAdjointEigenSolver<Matrix> spectrum(H, Eigen::EigenvaluesOnly);
+  const double largest = std::max(spectrum.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  const double smallest = spectrum.eigenvalues().minCoeff();
+  *shift = smallest < 1e-8 * largest ? 1e-4 * largest - smallest : 0.0;
+  H.diagonal().array() += *shift;
+  // A box, so the QP stays a box QP: far from the solution the reduced Hessian can be nearly
+  // singular along a parameter the data barely see, and the Newton step along it leaves the
+  // region where the linearized eigen-constraints mean anything.
+  const Vector lower = (bounds.lower - q).cwiseMax(-radius), upper = (bounds.upper - q).cwiseMin(radius);
+  return solve_box_qp(H, kkt.reduced_rhs(), lower, upper);
+}
+
 }  // namespace
 
 NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, const Vector& y0,
                                    const NewtonPhaseOptions& options, const NewtonCallback& callback) {
   NewtonPhaseResult result;
-  const int nv = problem.num_variables(), np = problem.num_parameters(), q0 = problem.parameter_offset();
-  Bounds bounds;
-  {
-    Vector lower(nv), upper(nv);
-    problem.bounds(lower.data(), upper.data());
-    bounds.lower = lower.tail(np);
-    bounds.upper = upper.tail(np);
-  }
+  const int np = problem.num_parameters(), q0 = problem.parameter_offset();
+  const Bounds bounds = parameter_bounds(problem);
   BlockKktSystem kkt(problem);
   Vector x = x0, y = y0;
-  struct FilterEntry {
-    double theta, f;
-  };
-  std::vector<FilterEntry> filter;  // (theta, f) pairs no trial point may be worse in both
-  double theta_max = 0, theta_min = 0;
+  FilterLineSearch line_search;
   double radius = 1;
   int cut_steps = 0;   // consecutive steps the line search or the trust box shortened
   auto finish = [&](const std::string& status, bool solved, const std::string& message) {
@@ -75,14 +160,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     const double dual = dual_infeasibility(kkt.lagrangian_gradient(), x.tail(np), bounds, q0);
     const double f0 = problem.objective(x.data());
     result.iterations = k;
-    NewtonIteration info;
-    info.iteration = k;
-    info.objective = f0;
-    info.primal_infeasibility = primal;
-    info.dual_infeasibility = dual;
-    info.step_length = last_step_length;
-    info.hessian_shift = last_shift;
-    if (callback && !callback(info, x.data())) {
+    if (callback && !callback(iteration_info(k, f0, primal, dual, last_step_length, last_shift), x.data())) {
       result.stopped_by_callback = true;
       return finish("User_Requested_Stop", false, "");
     }
@@ -94,67 +172,22 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
                         std::to_string(k) + " iterations");
     }
 
-    // Inertia correction on the reduced Hessian only (= on the null space of the constraints): a
-    // shift that makes its smallest eigenvalue 1e-4 of its largest where it was below that.
-    Matrix H = kkt.reduced_hessian();
-    const Eigen::SelfAdjointEigenSolver<Matrix> spectrum(H, Eigen::EigenvaluesOnly);
-    const double largest = std::max(spectrum.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
-    const double smallest = spectrum.eigenvalues().minCoeff();
-    last_shift = smallest < 1e-8 * largest ? 1e-4 * largest - smallest : 0.0;
-    H.diagonal().array() += last_shift;
-    // Trust region on q (a box, so the QP stays a box QP): far from the solution the reduced
-    // Hessian can be nearly singular along a parameter the data barely see, and the Newton step
-    // along it leaves the region where the linearized eigen-constraints mean anything.
     const Vector q = x.tail(np);
-    const Vector lower = (bounds.lower - q).cwiseMax(-radius), upper = (bounds.upper - q).cwiseMin(radius);
-    const BoxQpResult qp = solve_box_qp(H, kkt.reduced_rhs(), lower, upper);
+    const BoxQpResult qp = reduced_newton_step(kkt, q, bounds, radius, &last_shift);
     Vector dx, dy;
     kkt.step(qp.d, &dx, &dy);
-
-    // Step length by the filter line search of Ipopt (Waechter & Biegler 2006, sec. 2.3) on
-    // theta = |c|_1 and f: iterates may leave the constraints far behind while f falls, which is
-    // what lets the full space cut across the curved valleys a feasible method must follow.
-    const double theta = kkt.constraints().lpNorm<1>();
-    if (k == 0) {
-      theta_max = 1e4 * std::max(1.0, theta);
-      theta_min = 1e-4 * std::max(1.0, theta);
-    }
-    const double slope = kkt.objective_gradient().dot(dx);
     const double kkt0 = std::max(primal, dual);
-    double alpha = 1;
-    bool accepted = false, f_type = false;
-    for (; alpha >= 1e-10; alpha *= 0.5) {
-      const Vector trial = x + alpha * dx;
-      const double f = problem.objective(trial.data());
-      Vector ct(problem.num_constraints());
-      problem.constraints(trial.data(), ct.data());
-      const double theta_trial = ct.lpNorm<1>();
-      if (!std::isfinite(f) || !std::isfinite(theta_trial) || theta_trial > theta_max) continue;
-      const bool in_filter = std::any_of(filter.begin(), filter.end(), [&](const FilterEntry& e) {
-        return theta_trial >= e.theta && f >= e.f;
-      });
-      if (in_filter) continue;
-      // Switching condition: a descent direction for f that dominates the infeasibility.
-      f_type = slope < 0 && alpha * std::pow(-slope, 2.3) > std::pow(theta, 1.1) && theta <= theta_min;
-      if (f_type ? f <= f0 + 1e-4 * alpha * slope
-                 : (theta_trial <= (1 - 1e-5) * theta || f <= f0 - 1e-5 * theta)) {
-        accepted = true;
-        break;
-      }
-    }
-    if (accepted && !f_type) filter.push_back({(1 - 1e-5) * theta, f0 - 1e-5 * theta});
+    const FilterLineSearch::Outcome found = line_search.search(problem, x, dx, f0, kkt.constraints().lpNorm<1>(),
+                                                               kkt.objective_gradient().dot(dx));
+    const bool accepted = found.accepted;
+    const double alpha = found.alpha;
     // Cut steps (by the line search or the trust box) mean the iterate is outside the region
     // where Newton's model holds: the driver hands it back to the reduced globalization.
     const bool newton_step = accepted && alpha == 1 && qp.d.lpNorm<Eigen::Infinity>() < 0.999 * radius;
     cut_steps = newton_step ? 0 : cut_steps + 1;
     if (!accepted || cut_steps >= 3) {
       result.outside_newton_region = true;
-      return finish("Outside_Newton_Region", false,
-                    "block Newton: " +
-                        std::string(accepted ? "three steps in a row were cut by the line search or the trust region"
-                                             : "the filter line search found no acceptable step") +
-                        " (KKT error " + std::to_string(kkt0) +
-                        "): the start is outside Newton's region, or the derivatives are wrong");
+      return finish("Outside_Newton_Region", false, outside_newton_region_message(accepted, kkt0));
     }
     // The radius follows what the line search accepted.
     const double length = qp.d.lpNorm<Eigen::Infinity>();
