@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "diagnostics/modal_expansion.hpp"
@@ -74,30 +75,22 @@ int automatic_basis(const Matrix& at_sensors, int rigid, int first, const Vector
   return elastic;
 }
 
-}  // namespace
-
-Localization localize_model_error(const Problem& problem, const Vector& p, const LocalizationOptions& options) {
-  std::string error;
-  if (!options.IsValid(&error)) throw std::invalid_argument("LocalizationOptions: " + error);
-  if (p.size() != static_cast<Eigen::Index>(problem.parameters.size()))
-    throw std::invalid_argument("localize_model_error: " + std::to_string(p.size()) + " parameter values for " +
-                                std::to_string(problem.parameters.size()) + " parameters");
-  double highest_measured_hz = 0;
+/// The highest frequency of a measured mode with a shape.
+/// \throws std::invalid_argument when no measured mode has one.
+double highest_shape_hz(const Problem& problem) {
+  double highest = 0;
   for (const MeasuredMode& m : problem.measured)
-    if (m.shape.size() > 0) highest_measured_hz = std::max(highest_measured_hz, m.frequency_hz);
-  if (highest_measured_hz == 0)
+    if (m.shape.size() > 0) highest = std::max(highest, m.frequency_hz);
+  if (highest == 0)
     throw std::invalid_argument(problem.path + ": no measured mode has a shape; localization needs shapes at sensors");
-  const double cutoff_hz = options.max_frequency_ratio * highest_measured_hz;
+  return highest;
+}
 
-  Pairing pairing;
-  pair_modes(problem, p, options, cutoff_hz, &pairing);
-  const Evaluation& evaluation = pairing.evaluation;
-  Localization result;
-  result.warnings = evaluation.warnings;
-  if (!evaluation.ok) {
-    result.message = evaluation.message;
-    return result;
-  }
+/// The modes the measured shapes are expanded on: the rigid-body modes, then options.basis_modes
+/// elastic ones, or (0) the paired ones and more up to the cutoff while the sensors tell them
+/// apart; a warning when they barely tell the paired ones apart.
+Matrix expansion_basis(const Problem& problem, const Evaluation& evaluation, const SparseMatrix& sensors,
+                       const LocalizationOptions& options, double cutoff_hz, std::vector<std::string>* warnings) {
   const ModalResult& modal = evaluation.modal;
   int highest_paired = 0;
   for (const PairedMode& pair : evaluation.pairs)
@@ -108,11 +101,8 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
                                 ", which a measured shape is paired with");
   const int rigid = static_cast<int>(modal.rigid_modes.cols());
   const int available = static_cast<int>(modal.modes.cols());
-  const int readings = static_cast<int>(problem.sensors.size());
   Matrix candidates(modal.modes.rows(), rigid + available);  // rigid-body modes first
   candidates << modal.rigid_modes, modal.modes;
-  const ParametricSystem& system = pairing.objective->system();
-  const SparseMatrix sensors = detail::sensor_matrix(problem, system.dof_map());
   int elastic = std::min(options.basis_modes, available);
   if (options.basis_modes == 0) {
     const Matrix at_sensors = sensors * candidates;
@@ -123,30 +113,32 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
       warning << "the sensors barely tell the paired model modes apart (condition number " << condition
               << " of the basis at the sensors, above " << options.max_condition
               << "); the expansion may amplify measurement noise: add sensors where these modes differ";
-      result.warnings.push_back(warning.str());
+      warnings->push_back(warning.str());
     }
     elastic = automatic_basis(at_sensors, rigid, elastic, modal.eigenvalues, cutoff_hz, options.max_condition);
   }
-  const Matrix basis = candidates.leftCols(rigid + elastic);
-  if (basis.cols() > readings && options.regularization == 0)
-    throw std::invalid_argument("LocalizationOptions: the expansion basis has " + std::to_string(basis.cols()) +
+  const int readings = static_cast<int>(problem.sensors.size());
+  if (rigid + elastic > readings && options.regularization == 0)
+    throw std::invalid_argument("LocalizationOptions: the expansion basis has " + std::to_string(rigid + elastic) +
                                 " modes but there are only " + std::to_string(readings) +
                                 " sensor readings; use fewer basis modes or a regularization > 0");
+  return candidates.leftCols(rigid + elastic);
+}
 
+/// What expanding one measured shape needs: the model at the parameters, the sensors and the basis.
+struct Expander {
+  const Problem& problem;
+  const ModalResult& modal;
+  const SparseMatrix& sensors;
+  const Matrix& basis;
+  const detail::ModalExpansion& expansion;
   SparseMatrix K, M;
-  system.assemble(p, &K, &M);
-  const detail::ModalExpansion expansion(sensors * basis, options.regularization, options.rank_tolerance);
-  result.basis_size = static_cast<int>(basis.cols());
-  result.basis_condition = expansion.condition();
+  Vector mass;  // M's diagonal, floored so that a DOF without mass shows its residual
 
-  // r_d^2 / (lambda^2 M_dd): a DOF without mass of its own (a spring-only node) gets a tiny floor
-  // so that its residual shows rather than divides by zero.
-  Vector mass = M.diagonal();
-  mass = mass.cwiseMax(1e-12 * mass.cwiseAbs().maxCoeff());
-  Vector dof_energy = Vector::Zero(system.num_dofs());
-  for (const PairedMode& pair : evaluation.pairs) {
+  /// The measured shape of `pair` expanded on the basis, mass-normalized, with its residual force
+  /// and energy per DOF (*energy); nullopt when it cannot be normalized.
+  std::optional<ExpandedMode> expand(const PairedMode& pair, Vector* energy) const {
     const MeasuredMode& measured = problem.measured[pair.measured];
-    if (measured.shape.size() == 0) continue;
     ExpandedMode mode;
     mode.measured = pair.measured;
     mode.model_mode = pair.model;
@@ -159,26 +151,65 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
     // Regularized toward the paired model mode (coordinate e_k), not toward zero: a model that
     // reproduces the measured shape must expand it to itself and leave no residual.
     Vector paired = Vector::Zero(basis.cols());
-    paired[rigid + pair.model] = 1.0;
+    paired[modal.rigid_modes.cols() + pair.model] = 1.0;
     const Vector c = paired + expansion.coefficients(readings_scaled - model_readings);
     mode.shape = basis * c;
     mode.sensor_misfit = (sensors * mode.shape - readings_scaled).norm() / readings_scaled.norm();
     const double mass_norm = std::sqrt(mode.shape.dot(M * mode.shape));
-    if (!(mass_norm > 0) || !std::isfinite(mass_norm)) {
+    if (!(mass_norm > 0) || !std::isfinite(mass_norm)) return std::nullopt;
+    mode.shape /= mass_norm;
+    // r_d^2 / (lambda^2 M_dd): the residual force's energy per DOF.
+    const double lambda = eigenvalue_of_hz(measured.frequency_hz);
+    mode.residual = K * mode.shape - lambda * (M * mode.shape);
+    *energy = mode.residual.array().square() / (mass.array() * lambda * lambda);
+    mode.energy = energy->sum();
+    return mode;
+  }
+};
+
+}  // namespace
+
+Localization localize_model_error(const Problem& problem, const Vector& p, const LocalizationOptions& options) {
+  std::string error;
+  if (!options.IsValid(&error)) throw std::invalid_argument("LocalizationOptions: " + error);
+  if (p.size() != static_cast<Eigen::Index>(problem.parameters.size()))
+    throw std::invalid_argument("localize_model_error: " + std::to_string(p.size()) + " parameter values for " +
+                                std::to_string(problem.parameters.size()) + " parameters");
+  const double cutoff_hz = options.max_frequency_ratio * highest_shape_hz(problem);
+  Pairing pairing;
+  pair_modes(problem, p, options, cutoff_hz, &pairing);
+  const Evaluation& evaluation = pairing.evaluation;
+  Localization result;
+  result.warnings = evaluation.warnings;
+  if (!evaluation.ok) {
+    result.message = evaluation.message;
+    return result;
+  }
+  const ParametricSystem& system = pairing.objective->system();
+  const SparseMatrix sensors = detail::sensor_matrix(problem, system.dof_map());
+  const Matrix basis = expansion_basis(problem, evaluation, sensors, options, cutoff_hz, &result.warnings);
+  const detail::ModalExpansion expansion(sensors * basis, options.regularization, options.rank_tolerance);
+  result.basis_size = static_cast<int>(basis.cols());
+  result.basis_condition = expansion.condition();
+  Expander expander{problem, evaluation.modal, sensors, basis, expansion, {}, {}, {}};
+  system.assemble(p, &expander.K, &expander.M);
+  expander.mass = expander.M.diagonal();
+  expander.mass = expander.mass.cwiseMax(1e-12 * expander.mass.cwiseAbs().maxCoeff());
+
+  Vector dof_energy = Vector::Zero(system.num_dofs());
+  for (const PairedMode& pair : evaluation.pairs) {
+    if (problem.measured[pair.measured].shape.size() == 0) continue;
+    Vector energy;
+    std::optional<ExpandedMode> mode = expander.expand(pair, &energy);
+    if (!mode) {
       result.message = "measured mode " + std::to_string(pair.measured + 1) +
                        ": its shape is orthogonal to the paired model mode at the sensors (MAC " +
                        std::to_string(pair.mac) + "), so it cannot be expanded; check the sensor order";
       return result;
     }
-    mode.shape /= mass_norm;
-    const double lambda = eigenvalue_of_hz(measured.frequency_hz);
-    mode.residual = K * mode.shape - lambda * (M * mode.shape);
-    const Vector energy = mode.residual.array().square() / (mass.array() * lambda * lambda);
-    mode.energy = energy.sum();
     dof_energy += energy;
-    result.modes.push_back(std::move(mode));
+    result.modes.push_back(std::move(*mode));
   }
-
   const Model& model = problem.model;
   result.node_energy = detail::node_energy(system.dof_map(), model.num_nodes(), dof_energy);
   result.total_energy = result.node_energy.sum();
@@ -186,7 +217,7 @@ Localization localize_model_error(const Problem& problem, const Vector& p, const
   const Vector elements = detail::element_energy(model, mesh);
   result.element_indicator = result.total_energy > 0 ? Vector(elements / result.total_energy) : elements;
   result.ranking = detail::rank_regions(model, result.node_energy, mesh, elements, result.total_energy);
-  result.modal = modal;
+  result.modal = evaluation.modal;
   result.ok = true;
   return result;
 }
