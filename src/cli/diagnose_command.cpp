@@ -161,6 +161,69 @@ nlohmann::json step_json(const DiagnosisStep& s) {
           {"alternatives", alternatives_json(s.alternatives)}};
 }
 
+/// The first step's ranking: every screened candidate, refitted or not.
+nlohmann::json ranking_json(const Problem& problem, const EffectRanking& ranking) {
+  nlohmann::json list = nlohmann::json::array();
+  for (size_t k = 0; k < ranking.effects.size(); ++k) {
+    const RankedEffect& r = ranking.effects[k];
+    list.push_back({{"rank", k + 1},
+                    {"name", r.candidate.name},
+                    {"description", r.candidate.description},
+                    {"change", to_string(r.candidate.change)},
+                    {"location", location_json(effect_location(problem.model, r.candidate))},
+                    {"variable", variable_name(r.candidate.variable)},
+                    {"predicted_reduction", r.predicted_reduction},
+                    {"predicted_value", json_number(r.predicted_value)},
+                    {"refitted", r.refitted},
+                    {"achieved_reduction", json_number(r.achieved_reduction)},
+                    {"value", json_number(r.refitted ? r.value : r.predicted_value)},
+                    {"chi2_after", json_number(r.chi2_after)},
+                    {"delta_bic", json_number(r.delta_bic)},
+                    {"kind_size", r.kind_size},
+                    {"score", json_number(r.refitted ? r.score() : NAN)},
+                    {"significant", r.significant}});
+  }
+  return list;
+}
+
+/// The mesh's share of the residual, or null without the estimate.
+nlohmann::json discretization_json(const Diagnosis& d) {
+  if (!d.discretization) return nullptr;
+  const DiscretizationEstimate& est = *d.discretization;
+  nlohmann::json modes = nlohmann::json::array();
+  for (const DiscretizationEstimate::Mode& m : est.per_mode)
+    modes.push_back({{"label", m.label}, {"measured", m.measured + 1}, {"shift_percent", m.shift_percent}});
+  return {{"refinement", est.refinement},         {"dofs", est.dofs},
+          {"finer_dofs", est.finer_dofs},         {"per_mode", modes},
+          {"chi2_explained", est.chi2_explained}, {"critical_value", est.critical_value},
+          {"significant", est.significant},       {"corrected", est.corrected}};
+}
+
+/// The stepwise loop: forward steps, exchanges, what was kept and dropped, the residual at the end.
+void add_loop_json(const Diagnosis& d, nlohmann::json* out) {
+  nlohmann::json& json = *out;
+  json["steps"] = nlohmann::json::array();
+  for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
+  json["exchanges"] = nlohmann::json::array();
+  for (const DiagnosisStep& x : d.exchanges) {
+    nlohmann::json e = step_json(x);
+    e["replaces"] = x.replaces;
+    e["replaced_score"] = json_number(x.replaced_score);
+    json["exchanges"].push_back(e);
+  }
+  json["accepted"] = d.accepted();
+  json["dropped"] = nlohmann::json::array();
+  for (const DroppedEffect& x : d.dropped)
+    json["dropped"].push_back({{"name", x.name}, {"chi2_increase", x.chi2_increase}, {"critical_value", x.critical_value}});
+  json["started_with"] = nlohmann::json::array();
+  for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
+  json["residual_final"] = {{"statistic", d.final_fit.statistic},
+                            {"dof", d.final_fit.test ? nlohmann::json(d.final_fit.test->dof) : nlohmann::json()},
+                            {"p_value", d.final_fit.test ? nlohmann::json(d.final_fit.test->p_value) : nlohmann::json()},
+                            {"model_form_error", d.final_fit.test ? nlohmann::json(d.final_fit.test->model_form_error)
+                                                                  : nlohmann::json()}};
+}
+
 nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   nlohmann::json json;
   json["problem"] = problem.path;
@@ -190,48 +253,17 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
                                       {"kind", d.localization->ranking[r].kind},
                                       {"share", d.localization->ranking[r].share}});
   const EffectRanking& ranking = d.ranking;
+  json["ranking"] = ranking_json(problem, ranking);
   json["chi2_before"] = ranking.chi2_before;
   json["num_data"] = ranking.num_data;
   json["candidates_screened"] = ranking.screened;
   json["critical_value"] = ranking.critical_value;
   json["screen_time_s"] = ranking.screen_seconds;
   json["refit_time_s"] = ranking.refit_seconds;
-  json["ranking"] = nlohmann::json::array();
-  for (size_t k = 0; k < ranking.effects.size(); ++k) {
-    const RankedEffect& r = ranking.effects[k];
-    json["ranking"].push_back({{"rank", k + 1},
-                               {"name", r.candidate.name},
-                               {"description", r.candidate.description},
-                               {"change", to_string(r.candidate.change)},
-                               {"location", location_json(effect_location(problem.model, r.candidate))},
-                               {"variable", variable_name(r.candidate.variable)},
-                               {"predicted_reduction", r.predicted_reduction},
-                               {"predicted_value", json_number(r.predicted_value)},
-                               {"refitted", r.refitted},
-                               {"achieved_reduction", json_number(r.achieved_reduction)},
-                               {"value", json_number(r.refitted ? r.value : r.predicted_value)},
-                               {"chi2_after", json_number(r.chi2_after)},
-                               {"delta_bic", json_number(r.delta_bic)},
-                               {"kind_size", r.kind_size},
-                               {"score", json_number(r.refitted ? r.score() : NAN)},
-                               {"significant", r.significant}});
-  }
   json["set_aside"] = nlohmann::json::array();
   for (const auto& [name, why] : ranking.set_aside) json["set_aside"].push_back({{"name", name}, {"reason", why}});
-  json["discretization"] = nullptr;
-  if (d.discretization) {
-    nlohmann::json modes = nlohmann::json::array();
-    for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
-      modes.push_back({{"label", m.label}, {"measured", m.measured + 1}, {"shift_percent", m.shift_percent}});
-    json["discretization"] = {{"refinement", d.discretization->refinement},
-                              {"dofs", d.discretization->dofs},
-                              {"finer_dofs", d.discretization->finer_dofs},
-                              {"per_mode", modes},
-                              {"chi2_explained", d.discretization->chi2_explained},
-                              {"critical_value", d.discretization->critical_value},
-                              {"significant", d.discretization->significant},
-                              {"corrected", d.discretization->corrected}};
-  }
+  json["discretization"] = discretization_json(d);
+  add_loop_json(d, &json);
   json["map"] = {{"node_candidates", d.map.node_candidates},
                  {"region_candidates", d.map.region_candidates},
                  {"places", nlohmann::json::array()}};
@@ -239,26 +271,6 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
     const ScreenMap::Place& p = d.map.places[k];
     json["map"]["places"].push_back({{"what", p.what}, {"location", location_json(p.location)}, {"score", p.score}});
   }
-  json["steps"] = nlohmann::json::array();
-  for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
-  json["exchanges"] = nlohmann::json::array();
-  for (const DiagnosisStep& x : d.exchanges) {
-    nlohmann::json e = step_json(x);
-    e["replaces"] = x.replaces;
-    e["replaced_score"] = json_number(x.replaced_score);
-    json["exchanges"].push_back(e);
-  }
-  json["accepted"] = d.accepted();
-  json["dropped"] = nlohmann::json::array();
-  for (const DroppedEffect& x : d.dropped)
-    json["dropped"].push_back({{"name", x.name}, {"chi2_increase", x.chi2_increase}, {"critical_value", x.critical_value}});
-  json["started_with"] = nlohmann::json::array();
-  for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
-  json["residual_final"] = {{"statistic", d.final_fit.statistic},
-                            {"dof", d.final_fit.test ? nlohmann::json(d.final_fit.test->dof) : nlohmann::json()},
-                            {"p_value", d.final_fit.test ? nlohmann::json(d.final_fit.test->p_value) : nlohmann::json()},
-                            {"model_form_error", d.final_fit.test ? nlohmann::json(d.final_fit.test->model_form_error)
-                                                                  : nlohmann::json()}};
   add_hidden_effect(problem, &json);
   if (problem.synthetic_truth) {
     json["hidden_effect_rank"] = nlohmann::json::array();
@@ -341,17 +353,8 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
   return text;
 }
 
-int run_diagnose(const DiagnoseArgs& args) {
-  WorkFarm& farm = WorkFarm::join();  // in an MPI job every rank runs the diagnosis; the refits are shared
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
-  if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
-  require_parameters(problem);
-  print_warnings(problem);
-  // Refused before the diagnosis runs, not after: no output may replace a file the run reads.
-  for (const std::string* out : {&args.json, &args.plot, &args.map, &args.write_problem})
-    if (!out->empty()) check_output_path(*out, problem.source_files);
-  const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
-  require_start_within_bounds(problem, start);
+/// The diagnosis's options from the command line (the effects to add and the finer mesh apart).
+DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;
@@ -372,26 +375,18 @@ int run_diagnose(const DiagnoseArgs& args) {
   }
   std::string error;
   if (!options.IsValid(&error)) throw InputError(error);
-  std::printf("%s: %zu parameters, %zu measured modes%s\n", problem.path.c_str(), problem.parameters.size(),
-              problem.measured.size(),
-              problem.measurement_noise ? "" : "; no stated noise (measured: noise:), so no chi-square test");
-  std::fflush(stdout);
-  for (const std::string& text : args.add) {
-    try {
-      options.added.push_back(make_candidate(problem, text));
-    } catch (const std::invalid_argument& e) {
-      throw InputError(std::string("--add: ") + e.what());
-    }
-  }
-  // The same problem on a mesh `mesh_check` times finer, for the discretization estimate.
-  std::optional<Problem> finer;
+  return options;
+}
+
+/// The same problem on a mesh `--mesh-check` times finer, for the discretization estimate; none
+/// (with the reason printed) when the mesh comes from a file or the finer problem does not load.
+std::optional<Problem> finer_mesh_problem(const DiagnoseArgs& args, const Problem& problem) {
   if (args.mesh_check > 0 && problem.mesh_refinement > 0) {
     try {
       LoadOptions load;
       load.refinement = problem.mesh_refinement * args.mesh_check;
       load.nearest_sensor_nodes = true;
-      finer = load_problem(args.problem, load);
-      options.finer_mesh = &*finer;
+      return load_problem(args.problem, load);
     } catch (const ProblemError& e) {  // e.g. sensors on a node set, which has more nodes there
       std::printf("no discretization estimate: on a mesh %g times finer the problem does not load: %s\n",
                   args.mesh_check, e.what());
@@ -399,9 +394,11 @@ int run_diagnose(const DiagnoseArgs& args) {
   } else if (args.mesh_check > 0) {
     std::printf("no discretization estimate: the mesh comes from a file, which cannot be refined here\n");
   }
-  if (farm.size() > 1) std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
-  const Diagnosis d = diagnose(problem, start, options);
-  if (!farm.is_root()) return 0;  // rank 0 reports
+  return std::nullopt;
+}
+
+/// The report, the hidden effects' ranks (synthetic data) and every file asked for.
+void report_diagnosis(const DiagnoseArgs& args, const Problem& problem, const Diagnosis& d) {
   std::fputs(format_diagnosis(problem, d).c_str(), stdout);
   const std::string hidden = hidden_effect_text(problem);
   if (!hidden.empty()) {
@@ -433,6 +430,36 @@ int run_diagnose(const DiagnoseArgs& args) {
     for (const std::string& path : write_vtu_set(args.vtu, "diagnose", problem, system, d.calibration.final, fields))
       std::cout << "wrote " << path << "\n";
   }
+}
+
+int run_diagnose(const DiagnoseArgs& args) {
+  WorkFarm& farm = WorkFarm::join();  // in an MPI job every rank runs the diagnosis; the refits are shared
+  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
+  require_parameters(problem);
+  print_warnings(problem);
+  // Refused before the diagnosis runs, not after: no output may replace a file the run reads.
+  for (const std::string* out : {&args.json, &args.plot, &args.map, &args.write_problem})
+    if (!out->empty()) check_output_path(*out, problem.source_files);
+  const Vector start = choose_parameters(&problem, args.start) * args.start_factor;
+  require_start_within_bounds(problem, start);
+  DiagnosisOptions options = diagnosis_options(args, farm);
+  std::printf("%s: %zu parameters, %zu measured modes%s\n", problem.path.c_str(), problem.parameters.size(),
+              problem.measured.size(),
+              problem.measurement_noise ? "" : "; no stated noise (measured: noise:), so no chi-square test");
+  std::fflush(stdout);
+  for (const std::string& text : args.add) {
+    try {
+      options.added.push_back(make_candidate(problem, text));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--add: ") + e.what());
+    }
+  }
+  const std::optional<Problem> finer = finer_mesh_problem(args, problem);
+  if (finer) options.finer_mesh = &*finer;
+  if (farm.size() > 1) std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
+  const Diagnosis d = diagnose(problem, start, options);
+  if (farm.is_root()) report_diagnosis(args, problem, d);  // rank 0 reports
   return 0;
 }
 
