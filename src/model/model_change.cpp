@@ -8,6 +8,9 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
+#include <tuple>
+#include <utility>
 
 #include "support/text_util.hpp"
 #include "modalcal/block_geometry.hpp"
@@ -400,22 +403,18 @@ ModelEffect set_property(Model& model, const ModelChange& change, const std::str
   return effect;
 }
 
-ModelEffect add_entity(Model& model, const ModelChange& change, const std::string& text) {
-  const size_t expected_places = change.kind == ModelChange::Kind::AddJoint ? 2 : 1;
-  if (change.places.size() != expected_places)
-    fail(text, std::string(kind_keyword(change.kind)) + " takes " + std::to_string(expected_places) + " place" +
-                   (expected_places > 1 ? "s separated by '/'" : "") + ", got " + std::to_string(change.places.size()));
-  std::vector<ResolvedPlace> places;
-  for (const NodePlace& p : change.places) places.push_back(resolve(model, p, text));
+/// The component (index in the property names) an addition sets, after the checks every addition
+/// passes: a known property, a usable value, rotational components only on nodes with rotations.
+int checked_component(const Model& model, const ModelChange& change, const std::vector<ResolvedPlace>& places,
+                      const std::string& text) {
   const bool is_mass = change.kind == ModelChange::Kind::AddPointMass;
-  const bool is_support = change.kind == ModelChange::Kind::FlexibleSupport;
   const std::vector<std::string> keys = is_mass ? std::vector<std::string>{"mass", "Ixx", "Iyy", "Izz"} : kStiffnessComponentNames;
   const int component = index_of(keys, change.property);
   if (component < 0)
     fail(text, "an added " + std::string(is_mass ? "point mass" : kind_keyword(change.kind)) + " has no property '" +
                    change.property + "'; its properties: " + join(keys));
   check_value(text, change.property, change.value);
-  if (is_support && !(change.value > 0))
+  if (change.kind == ModelChange::Kind::FlexibleSupport && !(change.value > 0))
     fail(text, "a flexible support's stiffness must be positive (0 would leave the nodes free), got " +
                    format_round_trip(change.value));
   const bool rotational = is_mass ? component > 0 : component >= 3;
@@ -424,37 +423,42 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
       if (rotational && !model.has_rotations[v])
         fail(text, change.property + " acts on rotations, but node " + std::to_string(model.node_ids[v]) +
                        " has none (only reference nodes do); place it on a reference node");
+  return component;
+}
 
-  ModelEffect effect;
-  std::string entity;
-  if (change.kind == ModelChange::Kind::AddPointMass) {
-    entity = "added_mass_" + places[0].tag;
-    effect.description = component == 0 ? "added point mass at " + places[0].words
-                                        : "rotary inertia about " + std::string(kAxes[component - 1]) +
-                                              " of an added point mass at " + places[0].words;
-  } else if (change.kind == ModelChange::Kind::AddSpring) {
-    entity = "added_spring_" + places[0].tag;
-    effect.description = "added " + std::string(component >= 3 ? "rotational spring to ground about " : "spring to ground along ") +
-                         kAxes[component % 3] + " at " + places[0].words;
-  } else if (is_support) {
-    entity = "support_" + places[0].tag;
-    effect.description = "flexible support " + std::string(component >= 3 ? "about " : "along ") +
-                         kAxes[component % 3] + " at " + places[0].words +
-                         ": a spring to ground in place of the fixity";
-  } else {
-    for (const ResolvedPlace& place : places)
-      if (place.nodes.size() != 1)
-        fail(text, "a joint connects two nodes, but node set '" + place.tag + "' has " +
-                       std::to_string(place.nodes.size()) + "; give #ID or [x,y,z]");
-    if (places[0].nodes[0] == places[1].nodes[0]) fail(text, "both ends of the joint are " + places[0].words);
-    entity = "added_joint_" + places[0].tag + "_" + places[1].tag;
-    effect.description = "added joint between " + places[0].words + " and " + places[1].words + ", " +
-                         component_words(component);
+/// The added entity's name and the effect's description in words.
+std::pair<std::string, std::string> addition_name(const ModelChange& change, const std::vector<ResolvedPlace>& places,
+                                                  int component, const std::string& text) {
+  switch (change.kind) {
+    case ModelChange::Kind::AddPointMass:
+      return {"added_mass_" + places[0].tag, component == 0 ? "added point mass at " + places[0].words
+                                                            : "rotary inertia about " + std::string(kAxes[component - 1]) +
+                                                                  " of an added point mass at " + places[0].words};
+    case ModelChange::Kind::AddSpring:
+      return {"added_spring_" + places[0].tag,
+              "added " + std::string(component >= 3 ? "rotational spring to ground about " : "spring to ground along ") +
+                  kAxes[component % 3] + " at " + places[0].words};
+    case ModelChange::Kind::FlexibleSupport:
+      return {"support_" + places[0].tag, "flexible support " + std::string(component >= 3 ? "about " : "along ") +
+                                              kAxes[component % 3] + " at " + places[0].words +
+                                              ": a spring to ground in place of the fixity"};
+    default:
+      break;
   }
-  effect.name = entity + "." + change.property;
-  effect.value = change.value;
+  for (const ResolvedPlace& place : places)
+    if (place.nodes.size() != 1)
+      fail(text, "a joint connects two nodes, but node set '" + place.tag + "' has " +
+                     std::to_string(place.nodes.size()) + "; give #ID or [x,y,z]");
+  if (places[0].nodes[0] == places[1].nodes[0]) fail(text, "both ends of the joint are " + places[0].words);
+  return {"added_joint_" + places[0].tag + "_" + places[1].tag,
+          "added joint between " + places[0].words + " and " + places[1].words + ", " + component_words(component)};
+}
 
-  // Find the entity an earlier change added at the same place, or create it.
+/// Adds the entity named `entity` unless an earlier change added it at the same place (then it
+/// must be of the same kind); a flexible support also releases the fixity it replaces.
+void find_or_create_entity(Model& model, const ModelChange& change, const std::vector<ResolvedPlace>& places,
+                           const std::string& entity, int component, const std::string& text) {
+  const bool is_support = change.kind == ModelChange::Kind::FlexibleSupport;
   const EntityRef other = find_entity_or_part(model, entity);
   auto clash = [&](EntityKind kind) {
     if (other.kind != EntityKind::None && other.kind != kind)
@@ -492,10 +496,26 @@ ModelEffect add_entity(Model& model, const ModelChange& change, const std::strin
       model.joints.push_back(j);
     }
   }
+}
+
+ModelEffect add_entity(Model& model, const ModelChange& change, const std::string& text) {
+  const size_t expected_places = change.kind == ModelChange::Kind::AddJoint ? 2 : 1;
+  if (change.places.size() != expected_places)
+    fail(text, std::string(kind_keyword(change.kind)) + " takes " + std::to_string(expected_places) + " place" +
+                   (expected_places > 1 ? "s separated by '/'" : "") + ", got " + std::to_string(change.places.size()));
+  std::vector<ResolvedPlace> places;
+  for (const NodePlace& p : change.places) places.push_back(resolve(model, p, text));
+  const int component = checked_component(model, change, places, text);
+  ModelEffect effect;
+  std::string entity;
+  std::tie(entity, effect.description) = addition_name(change, places, component, text);
+  effect.name = entity + "." + change.property;
+  effect.value = change.value;
+  find_or_create_entity(model, change, places, entity, component, text);
   const PropertyId existing = model.find_property(effect.name);
   effect.nominal_value = existing != kNoProperty ? model.properties[existing].value
-                         : is_support            ? std::numeric_limits<double>::infinity()
-                                                 : 0.0;
+                         : change.kind == ModelChange::Kind::FlexibleSupport ? std::numeric_limits<double>::infinity()
+                                                                             : 0.0;
   const PropertyId id = existing == kNoProperty ? model.add_property(effect.name, change.value) : existing;
   model.properties[id].value = change.value;
   // Point masses on a node set share one property.
