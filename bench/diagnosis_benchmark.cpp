@@ -46,8 +46,9 @@
 // kept by the backward pass has the right kind and place (the rules in kinds_match(): the same
 // candidate for joint, support and node-set truths, the right block's stiffness_scale or
 // mass_scale for block-wide truths, the block's stiffness_scale for Poisson and part-of-block
-// truths (or a local stiffness effect in the part), an added mass or a spring to ground in the
-// same direction within two element sizes for node truths); every truth effect matched by some
+// truths (or a local stiffness effect in the part), mass added at a place (a point mass or a
+// heavier region: one kind in the library's prior) or a spring to ground in the same direction
+// within two element sizes for node truths, and for heavier-region truths); every truth effect matched by some
 // kept effect; final residual p-value; relative error of the accepted value's change from nominal
 // against the truth's (compliance for supports; not for Poisson or part-of-block truths);
 // wall and CPU seconds.
@@ -754,9 +755,12 @@ EffectCandidate as_candidate(const EffectSpec& t) {
 
 /// Whether the accepted candidate `a` (acting at `where`) is the truth effect `t`: the right kind
 /// and place (within two element sizes `h2` of where the truth acts).
-bool kinds_match(const EffectSpec& t, const EffectCandidate& a, const std::optional<Vec3>& where, double h2) {
+bool kinds_match(const EffectSpec& t, const EffectCandidate& a, double value, const std::optional<Vec3>& where,
+                 double h2) {
   const Classified k = classify(a);
   auto near = [&](double extra) { return where && t.location && (*where - *t.location).norm() <= h2 + extra; };
+  // Mass added at a place: a point mass, or a heavier region (the library's one kind, "local mass").
+  const bool mass_added = k.kind == AcceptedKind::Mass || (k.kind == AcceptedKind::RegionMass && value > 1);
   const bool stiffness_local = k.kind == AcceptedKind::GroundSpring || k.kind == AcceptedKind::Support ||
                                k.kind == AcceptedKind::AddedJoint || k.kind == AcceptedKind::JointComponent ||
                                k.kind == AcceptedKind::RegionStiffness;
@@ -774,14 +778,15 @@ bool kinds_match(const EffectSpec& t, const EffectCandidate& a, const std::optio
     case Family::RegionScale: {
       if (a.name == t.name) return true;
       const Classified tk = classify(as_candidate(t));
+      if (tk.kind == AcceptedKind::RegionMass && t.value > 1 && mass_added && near(0)) return true;
       return k.kind == tk.kind && k.entity == tk.entity && near(0);
     }
     case Family::SensorMass:
-    case Family::AnyNodeMass: return k.kind == AcceptedKind::Mass && near(0);
+    case Family::AnyNodeMass: return mass_added && near(0);
     case Family::SurfaceNode:
     case Family::AnyNodeSpring: {
       const Classified tk = classify(as_candidate(t));
-      if (tk.kind == AcceptedKind::Mass) return k.kind == AcceptedKind::Mass && near(0);
+      if (tk.kind == AcceptedKind::Mass) return mass_added && near(0);
       return (k.kind == AcceptedKind::GroundSpring || k.kind == AcceptedKind::Support) && k.component == tk.component && near(0);
     }
     case Family::PartialBlock:
@@ -1070,7 +1075,7 @@ int main(int argc, char** argv) {
             for (size_t t = 0; t < c.effects.size(); ++t) {
               const EffectSpec& e = c.effects[t];
               const double h2 = 2 * (e.location ? element_size_at(ctx, *e.location) : 0);
-              if (!kinds_match(e, a, where, h2)) continue;
+              if (!kinds_match(e, a, kept[m].second, where, h2)) continue;
               matched = true;
               found[t] = true;
               if (m == 0) {
@@ -1087,7 +1092,8 @@ int main(int argc, char** argv) {
             for (const RankedEffect* r : named)
               for (const EffectSpec& e : c.effects) {
                 const double h2 = 2 * (e.location ? element_size_at(ctx, *e.location) : 0);
-                if (kinds_match(e, r->candidate, effect_location(problem.model, r->candidate), h2)) o.named_right = true;
+                if (kinds_match(e, r->candidate, r->value, effect_location(problem.model, r->candidate), h2))
+                  o.named_right = true;
               }
           }
           if (args.print_diagnosis) std::fprintf(stderr, "=== case %d\n%s\n", k, format_diagnosis(problem, d).c_str());

@@ -288,8 +288,16 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
     if (!a.refitted) EXPECT_FALSE(b.refitted);
     if (!a.refitted) EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
   }
+  // A kind: the change's kind and property; added point masses and regions' mass scales are one,
+  // mass at a place.
+  const auto local_mass = [](const RankedEffect& r) {
+    const ModelChange& c = r.candidate.change;
+    return (c.kind == ModelChange::Kind::AddPointMass && c.property == "mass") ||
+           (c.kind == ModelChange::Kind::AddRegion && c.property == "mass_scale");
+  };
   const auto of_kind = [&](const RankedEffect& r) {
     return std::count_if(ranking.effects.begin(), ranking.effects.end(), [&](const RankedEffect& o) {
+      if (local_mass(r) || local_mass(o)) return local_mass(r) && local_mass(o);
       return o.candidate.change.kind == r.candidate.change.kind && o.candidate.change.property == r.candidate.change.property;
     });
   };

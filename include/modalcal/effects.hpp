@@ -59,8 +59,9 @@
 /// second question. Among the significant refits the ranking puts first the largest
 /// \f[ S = \Delta X^2 - 2 \ln n_{kind}, \f]
 /// \f$n_{kind}\f$ the number of candidates of its kind screened (a kind: the change's kind and
-/// property, e.g. "an added point mass" or "a block's stiffness scale"; a declared candidate is a
-/// kind of its own). S is twice the log posterior odds of the candidate against "no effect" when
+/// property, e.g. "a spring to ground along x" or "a block's stiffness scale"; added point masses
+/// and block regions' mass scales are one kind, mass at a place; a declared candidate is a kind of
+/// its own). S is twice the log posterior odds of the candidate against "no effect" when
 /// every kind is a priori equally likely and a kind's members share its prior (up to a constant
 /// common to all): a point mass at one of 2,000 nodes must fit better by \f$2\ln(2000/4) \approx 12\f$
 /// than a scale of one of 4 blocks to be preferred, since one of 2,000 places fits well by chance

@@ -101,9 +101,14 @@ bool neighbours(const EffectCandidate& a, const EffectCandidate& b) {
 }
 
 /// A candidate's kind for the prior of effects.hpp ("Which effect"): its change's kind and
-/// property; a declared candidate is a kind of its own.
+/// property, except that added point masses and the mass scales of block regions are one kind,
+/// mass added (or missing) at a place: two parametrizations of one physical hypothesis, which the
+/// fit, not their numbers, should choose between. A declared candidate is a kind of its own.
 std::string kind_of(const EffectCandidate& c) {
   if (c.declared) return "declared " + c.name;
+  const bool local_mass = (c.change.kind == ModelChange::Kind::AddPointMass && c.change.property == "mass") ||
+                          (c.change.kind == ModelChange::Kind::AddRegion && c.change.property == "mass_scale");
+  if (local_mass) return "local mass";
   return std::to_string(static_cast<int>(c.change.kind)) + " " + c.change.property;
 }
 
