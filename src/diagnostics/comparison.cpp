@@ -45,6 +45,70 @@ Vector comac(const std::vector<Vector>& measured, const std::vector<Vector>& mod
 
 }  // namespace
 
+namespace {
+
+/// The columns `modes` of the model's shapes at the sensors.
+Matrix columns_of(const Matrix& model_at_sensors, const std::vector<int>& modes) {
+  Matrix phi_a(model_at_sensors.rows(), static_cast<Eigen::Index>(modes.size()));
+  for (size_t j = 0; j < modes.size(); ++j) phi_a.col(static_cast<Eigen::Index>(j)) = model_at_sensors.col(modes[j]);
+  return phi_a;
+}
+
+/// The SEREP pseudo-inverse of the model's shapes at the sensors: from every computed mode when
+/// the sensors can tell them apart (then a measured shape's part outside the paired modes shows),
+/// else from the paired ones. Sets c->serep_modes, or c->cross_orthogonality_note and returns
+/// an empty matrix when neither basis will do.
+Matrix serep_pseudo_inverse(const Matrix& model_at_sensors, const ComparisonOptions& options, ModalComparison* c) {
+  const Eigen::Index ns = model_at_sensors.rows();
+  std::vector<int> paired_modes;
+  for (int index : c->shape_pairs) paired_modes.push_back(c->pairs[static_cast<size_t>(index)].model);
+  std::vector<int> all_modes(static_cast<size_t>(model_at_sensors.cols()));
+  for (size_t k = 0; k < all_modes.size(); ++k) all_modes[k] = static_cast<int>(k);
+  for (const std::vector<int>& basis : {all_modes, paired_modes}) {
+    const Eigen::Index nb = static_cast<Eigen::Index>(basis.size());
+    if (ns < nb) {
+      c->cross_orthogonality_note = "SEREP needs at least as many sensor DOFs (" + std::to_string(ns) +
+                                    ") as model modes in its basis (" + std::to_string(nb) + ")";
+      continue;
+    }
+    const Eigen::JacobiSVD<Matrix> svd(columns_of(model_at_sensors, basis), Eigen::ComputeThinU | Eigen::ComputeThinV);
+    const Vector& sigma = svd.singularValues();
+    if (!(sigma[nb - 1] > options.serep_condition * sigma[0])) {
+      c->cross_orthogonality_note = "the " + std::to_string(nb) + " model modes of the SEREP basis are not independent " +
+                                    "at the sensors (singular values " + std::to_string(sigma[0]) + " to " +
+                                    std::to_string(sigma[nb - 1]) + ")";
+      continue;
+    }
+    c->serep_modes = basis;
+    c->cross_orthogonality_note.clear();
+    return svd.matrixV() * sigma.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
+  }
+  return Matrix();
+}
+
+/// Cross-orthogonality of each measured shape with the SEREP basis's model modes, in the test mass
+/// of `pseudo_inverse`; each paired entry goes to its pair too.
+void add_cross_orthogonality(const Matrix& model_at_sensors, const std::vector<Vector>& measured_shapes,
+                             const Matrix& pseudo_inverse, ModalComparison* c) {
+  const Matrix test_mass = pseudo_inverse.transpose() * pseudo_inverse;
+  const Matrix phi_a = columns_of(model_at_sensors, c->serep_modes);
+  c->cross_orthogonality.resize(static_cast<Eigen::Index>(c->shape_pairs.size()), phi_a.cols());
+  for (size_t i = 0; i < c->shape_pairs.size(); ++i) {
+    ComparedPair& pair = c->pairs[static_cast<size_t>(c->shape_pairs[i])];
+    const Eigen::Index column =
+        std::find(c->serep_modes.begin(), c->serep_modes.end(), pair.model) - c->serep_modes.begin();
+    Vector phi = measured_shapes[i];
+    const double norm = phi.dot(test_mass * phi);
+    phi /= norm > 0 ? std::sqrt(norm) : 1.0;
+    if (phi.dot(test_mass * phi_a.col(column)) < 0) phi = -phi;  // the sign of its pair
+    const Eigen::Index row = static_cast<Eigen::Index>(i);
+    c->cross_orthogonality.row(row) = (norm > 0 ? 1.0 : NAN) * (phi.transpose() * test_mass * phi_a);
+    pair.cross_orthogonality = c->cross_orthogonality(row, column);
+  }
+}
+
+}  // namespace
+
 ModalComparison compare_modes(const Problem& problem, const Vector& p, const ComparisonOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("ComparisonOptions: " + error);
@@ -90,55 +154,8 @@ ModalComparison compare_modes(const Problem& problem, const Vector& p, const Com
     return c;
   }
   c.comac = comac(measured_shapes, model_shapes);
-
-  // SEREP test-analysis mass: from every computed mode when the sensors can tell them apart
-  // (then a measured shape's part outside the paired modes shows), else from the paired ones.
-  const Eigen::Index ns = model_at_sensors.rows();
-  std::vector<int> paired_modes;
-  for (int index : c.shape_pairs) paired_modes.push_back(c.pairs[static_cast<size_t>(index)].model);
-  std::vector<int> all_modes(static_cast<size_t>(num_model));
-  for (int k = 0; k < num_model; ++k) all_modes[static_cast<size_t>(k)] = k;
-  Matrix pseudo_inverse;
-  for (const std::vector<int>& basis : {all_modes, paired_modes}) {
-    const Eigen::Index nb = static_cast<Eigen::Index>(basis.size());
-    if (ns < nb) {
-      c.cross_orthogonality_note = "SEREP needs at least as many sensor DOFs (" + std::to_string(ns) +
-                                   ") as model modes in its basis (" + std::to_string(nb) + ")";
-      continue;
-    }
-    Matrix phi_a(ns, nb);
-    for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(basis[static_cast<size_t>(j)]);
-    const Eigen::JacobiSVD<Matrix> svd(phi_a, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    const Vector& sigma = svd.singularValues();
-    if (!(sigma[nb - 1] > options.serep_condition * sigma[0])) {
-      c.cross_orthogonality_note = "the " + std::to_string(nb) + " model modes of the SEREP basis are not independent " +
-                                   "at the sensors (singular values " + std::to_string(sigma[0]) + " to " +
-                                   std::to_string(sigma[nb - 1]) + ")";
-      continue;
-    }
-    pseudo_inverse = svd.matrixV() * sigma.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
-    c.serep_modes = basis;
-    c.cross_orthogonality_note.clear();
-    break;
-  }
-  if (c.serep_modes.empty()) return c;
-  const Matrix test_mass = pseudo_inverse.transpose() * pseudo_inverse;
-  const Eigen::Index nb = static_cast<Eigen::Index>(c.serep_modes.size());
-  Matrix phi_a(ns, nb);
-  for (Eigen::Index j = 0; j < nb; ++j) phi_a.col(j) = model_at_sensors.col(c.serep_modes[static_cast<size_t>(j)]);
-  c.cross_orthogonality.resize(static_cast<Eigen::Index>(c.shape_pairs.size()), nb);
-  for (size_t i = 0; i < c.shape_pairs.size(); ++i) {
-    ComparedPair& pair = c.pairs[static_cast<size_t>(c.shape_pairs[i])];
-    const Eigen::Index column =
-        std::find(c.serep_modes.begin(), c.serep_modes.end(), pair.model) - c.serep_modes.begin();
-    Vector phi = measured_shapes[i];
-    const double norm = phi.dot(test_mass * phi);
-    phi /= norm > 0 ? std::sqrt(norm) : 1.0;
-    if (phi.dot(test_mass * phi_a.col(column)) < 0) phi = -phi;  // the sign of its pair
-    const Eigen::Index row = static_cast<Eigen::Index>(i);
-    c.cross_orthogonality.row(row) = (norm > 0 ? 1.0 : NAN) * (phi.transpose() * test_mass * phi_a);
-    pair.cross_orthogonality = c.cross_orthogonality(row, column);
-  }
+  const Matrix pseudo_inverse = serep_pseudo_inverse(model_at_sensors, options, &c);
+  if (!c.serep_modes.empty()) add_cross_orthogonality(model_at_sensors, measured_shapes, pseudo_inverse, &c);
   return c;
 }
 
