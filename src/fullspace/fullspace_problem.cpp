@@ -34,6 +34,16 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
       scaling_(scaling),
       n_(objective.system().num_dofs()),
       np_(objective.num_parameters()) {
+  select_measured_modes();
+  set_scales(p_scale);
+  find_parameter_rows(p_scale);
+  build_uu_pattern();
+  register_layouts();
+}
+
+/// The measured modes that are unknowns (those with a weight or a shape term), their shape
+/// misfits and reference eigenvalues.
+void FullSpaceProblem::select_measured_modes() {
   for (size_t m = 0; m < problem_.measured.size(); ++m) {
     const MeasuredMode& mode = problem_.measured[m];
     const bool shape = mode.has_shape_term();
@@ -44,7 +54,11 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
   if (measured_.empty()) throw std::invalid_argument(problem_.path + ": every measured mode has zero weight");
   lambda_ref_.resize(num_modes());
   for (int i = 0; i < num_modes(); ++i) lambda_ref_[i] = eigenvalue_of_hz(problem_.measured[measured_[i]].frequency_hz);
+}
 
+/// K and M at the scale point, the scales of modes, masses and normalization, and the rows'
+/// scaling; the sensor DOFs.
+void FullSpaceProblem::set_scales(const Vector& p_scale) {
   system_.assemble(p_scale, &K_, &M_);
   const double trace = M_.diagonal().sum();
   if (!(trace > 0)) throw std::invalid_argument(problem_.path + ": the mass matrix has no positive diagonal");
@@ -63,8 +77,10 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
   sensors_ = sensor_matrix(problem_, system_.dof_map());
   for (int c = 0; c < sensors_.outerSize(); ++c)
     if (sensors_.outerIndexPtr()[c + 1] > sensors_.outerIndexPtr()[c]) sensor_dofs_.push_back(c);
+}
 
-  // Structural rows of K_j, M_j: where any term depending on p_j has an entry.
+/// Structural rows of K_j, M_j: where any term depending on p_j has an entry.
+void FullSpaceProblem::find_parameter_rows(const Vector& p_scale) {
   parameter_rows_.resize(np_);
   dK_.resize(np_);
   dM_.resize(np_);
@@ -77,8 +93,10 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
     for (int r = 0; r < n_; ++r)
       if (touched[r]) parameter_rows_[j].push_back(r);
   }
+}
 
-  // Pattern of the u~_i u~_i Hessian block: z_i M (lower) plus the dense sensor block.
+/// Pattern of the u~_i u~_i Hessian block: z_i M (lower) plus the dense sensor block.
+void FullSpaceProblem::build_uu_pattern() {
   const SparseMatrix& pattern = system_.pattern();
   std::vector<Eigen::Triplet<double, int>> entries;
   for (int c = 0; c < pattern.outerSize(); ++c)
@@ -96,8 +114,11 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
   uu_sensor_positions_ = Matrix::Constant(sensor_dofs_.size(), sensor_dofs_.size(), -1);
   for (size_t a = 0; a < sensor_dofs_.size(); ++a)
     for (size_t b = 0; b <= a; ++b) uu_sensor_positions_(a, b) = position(uu_pattern_, sensor_dofs_[a], sensor_dofs_[b]);
+}
 
-  // The layouts: every block registered once, in this order.
+/// The layouts of the Jacobian and Hessian values: every block registered once, in this order.
+void FullSpaceProblem::register_layouts() {
+  const SparseMatrix& pattern = system_.pattern();
   const int l = num_modes(), t0 = l * n_, q0 = l * (n_ + 1);
   const std::vector<int> q_columns = range(q0, np_);
   blocks_.resize(l);
@@ -120,8 +141,7 @@ FullSpaceProblem::FullSpaceProblem(Objective& objective, const ParameterScaling&
     b.h_qt = hessian_.add_column(q_columns, t0 + i);
   }
   h_qq_.offset = hessian_.nonzeros();
-  for (int j = 0; j < np_; ++j) h_qq_.size += hessian_.add_row(q0 + j, range(q0, j + 1)).size;
-}
+  for (int j = 0; j < np_; ++j) h_qq_.size += hessian_.add_row(q0 + j, range(q0, j + 1)).size;}
 
 void FullSpaceProblem::update(const double* x) {
   const Vector q = scaled_parameters(x);

@@ -75,6 +75,12 @@ class FullSpaceProblem {
     SparseLayout::Block h_uu, h_tu, h_tt, h_qt;
     std::vector<SparseLayout::Block> h_qu;
   };
+  // The constructor's steps, in order.
+  void select_measured_modes();
+  void set_scales(const Vector& p_scale);
+  void find_parameter_rows(const Vector& p_scale);
+  void build_uu_pattern();
+  void register_layouts();
   void update(const double* x);  // K, M and their parameter derivatives at p(q)
   Eigen::Map<const Vector> mode(const double* x, int i) const { return Eigen::Map<const Vector>(x + i * n_, n_); }
   double eigenvalue_ratio(const double* x, int i) const { return x[num_modes() * n_ + i]; }
