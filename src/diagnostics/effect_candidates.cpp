@@ -182,13 +182,10 @@ class CandidateFactory {
 
   /// The candidate, or nullopt with the reason in *why.
   std::optional<EffectCandidate> from_change(ModelChange change, std::string* why) const {
-    const bool stiffness =
-        change.kind != ModelChange::Kind::AddPointMass &&
-        std::find(std::begin(kStiffnessComponentNames), std::end(kStiffnessComponentNames), change.property) != std::end(kStiffnessComponentNames);
-    const int component =
-        stiffness ? static_cast<int>(std::find(std::begin(kStiffnessComponentNames), std::end(kStiffnessComponentNames), change.property) -
-                                     std::begin(kStiffnessComponentNames))
-                  : -1;
+    const auto k = std::find(std::begin(kStiffnessComponentNames), std::end(kStiffnessComponentNames), change.property);
+    const int component = change.kind != ModelChange::Kind::AddPointMass && k != std::end(kStiffnessComponentNames)
+                              ? static_cast<int>(k - std::begin(kStiffnessComponentNames))
+                              : -1;  // a stiffness component's index, -1 for anything else
     // Apply it with a harmless value to learn its name, words, nominal value and nodes.
     change.value = change.property == "nu" ? 0.25 : 1;
     Model changed = model_;
@@ -209,72 +206,90 @@ class CandidateFactory {
     c.change = change;
     const std::string entity = effect.name.substr(0, effect.name.rfind('.'));
     const std::vector<int> nodes = nodes_of(changed, entity);
-    const bool rotational =
-        component >= 3 || (change.kind == ModelChange::Kind::AddPointMass && change.property != "mass");
     const double h = scales_.element_size(nodes);
-    const double length_squared = rotational ? h * h : 1;
     if (!is_block(changed, entity)) c.location = centroid(changed, nodes);
     c.neighbourhood = 2 * h;
-
-    if (change.kind == ModelChange::Kind::FlexibleSupport) {
-      const double k_ref = scales_.node_stiffness(nodes) * length_squared;
-      c.variable = EffectCandidate::Variable::Compliance;
-      c.nominal = std::numeric_limits<double>::infinity();
-      c.reference = k_ref;
-      c.screen_value = options_.rigid_support_factor * k_ref;
-      c.lower = k_ref / 1000;
-      c.upper = c.screen_value;
-      return c;
-    }
-    if (effect.nominal_value != 0 &&
-        (change.kind == ModelChange::Kind::SetProperty || change.kind == ModelChange::Kind::AddRegion)) {
-      // A present property (or an absent scale factor, nominal 1): a factor of ten either way.
-      c.variable = EffectCandidate::Variable::Log;
-      c.nominal = c.screen_value = c.reference = effect.nominal_value;
-      c.lower = effect.nominal_value / 10;
-      c.upper = effect.nominal_value * 10;
-      if (change.property == "nu") {  // bounded by physics, not by a factor
-        c.variable = EffectCandidate::Variable::Linear;
-        c.lower = std::max(-0.99, effect.nominal_value - 0.2);
-        c.upper = std::min(0.49, effect.nominal_value + 0.2);
-      }
-      return c;
-    }
-    // Absent until now: linear from 0.
-    c.variable = EffectCandidate::Variable::Linear;
-    c.nominal = c.screen_value = 0;
-    if (stiffness) {
-      double k_ref = scales_.node_stiffness(nodes) * length_squared;
-      if (const Joint* j = find_joint(changed, entity); j && change.kind == ModelChange::Kind::SetProperty) {
-        // A joint's own translational stiffness (geometric mean of its present components) sets
-        // the scale; a rotational component acts over the patches its nodes couple.
-        double log_sum = 0;
-        int present = 0;
-        for (int t = 0; t < 3; ++t)
-          if (const double k = model_.property_value(model_joint(entity)->stiffness[t]); k > 0) {
-            log_sum += std::log(k);
-            ++present;
-          }
-        const double k_translation = present ? std::exp(log_sum / present) : scales_.node_stiffness(nodes);
-        const double radius = std::max(scales_.patch_radius(j->node_a), scales_.patch_radius(j->node_b));
-        k_ref = component >= 3 ? k_translation * radius * radius : k_translation;
-      } else if (change.kind == ModelChange::Kind::AddJoint) {
-        // Between two parts: the softer side decides.
-        const Joint* added = find_joint(changed, entity);
-        k_ref =
-            std::min(scales_.node_stiffness({added->node_a}), scales_.node_stiffness({added->node_b})) * length_squared;
-      }
-      c.reference = k_ref;
-      c.upper = 100 * k_ref;
-    } else {
-      const double per_node = scales_.mass(nodes) / std::max<size_t>(1, nodes.size());
-      c.reference = 0.01 * per_node * length_squared;
-      c.upper = 0.5 * per_node * length_squared;
-    }
-    c.lower = 0;
+    const bool rotational =
+        component >= 3 || (change.kind == ModelChange::Kind::AddPointMass && change.property != "mass");
+    const Place place{changed, entity, nodes, component, rotational ? h * h : 1};
+    set_range(change, effect, place, &c);
     return c;
   }
 
+ private:
+  /// Where a candidate acts: the changed model, its entity and nodes, the stiffness component
+  /// (-1: none), and the squared length that turns a force scale into a moment scale (1 if none).
+  struct Place {
+    const Model& changed;
+    const std::string& entity;
+    const std::vector<int>& nodes;
+    int component;
+    double length_squared;
+  };
+
+  /// The candidate's variable, nominal value, screening value, reference and bounds.
+  void set_range(const ModelChange& change, const ModelEffect& effect, const Place& at, EffectCandidate* c) const {
+    if (change.kind == ModelChange::Kind::FlexibleSupport) {
+      const double k_ref = scales_.node_stiffness(at.nodes) * at.length_squared;
+      c->variable = EffectCandidate::Variable::Compliance;
+      c->nominal = std::numeric_limits<double>::infinity();
+      c->reference = k_ref;
+      c->screen_value = options_.rigid_support_factor * k_ref;
+      c->lower = k_ref / 1000;
+      c->upper = c->screen_value;
+    } else if (effect.nominal_value != 0 &&
+               (change.kind == ModelChange::Kind::SetProperty || change.kind == ModelChange::Kind::AddRegion)) {
+      // A present property (or an absent scale factor, nominal 1): a factor of ten either way.
+      c->variable = EffectCandidate::Variable::Log;
+      c->nominal = c->screen_value = c->reference = effect.nominal_value;
+      c->lower = effect.nominal_value / 10;
+      c->upper = effect.nominal_value * 10;
+      if (change.property == "nu") {  // bounded by physics, not by a factor
+        c->variable = EffectCandidate::Variable::Linear;
+        c->lower = std::max(-0.99, effect.nominal_value - 0.2);
+        c->upper = std::min(0.49, effect.nominal_value + 0.2);
+      }
+    } else {  // absent until now: linear from 0
+      c->variable = EffectCandidate::Variable::Linear;
+      c->nominal = c->screen_value = 0;
+      c->lower = 0;
+      if (at.component >= 0) {
+        c->reference = stiffness_reference(change, at);
+        c->upper = 100 * c->reference;
+      } else {
+        const double per_node = scales_.mass(at.nodes) / std::max<size_t>(1, at.nodes.size());
+        c->reference = 0.01 * per_node * at.length_squared;
+        c->upper = 0.5 * per_node * at.length_squared;
+      }
+    }
+  }
+
+  /// The stiffness scale of an absent stiffness component: the nodes' own, a joint's present
+  /// components, or for a joint between two parts the softer side's.
+  double stiffness_reference(const ModelChange& change, const Place& at) const {
+    if (const Joint* j = find_joint(at.changed, at.entity); j && change.kind == ModelChange::Kind::SetProperty) {
+      // A joint's own translational stiffness (geometric mean of its present components) sets
+      // the scale; a rotational component acts over the patches its nodes couple.
+      double log_sum = 0;
+      int present = 0;
+      for (int t = 0; t < 3; ++t)
+        if (const double k = model_.property_value(model_joint(at.entity)->stiffness[t]); k > 0) {
+          log_sum += std::log(k);
+          ++present;
+        }
+      const double k_translation = present ? std::exp(log_sum / present) : scales_.node_stiffness(at.nodes);
+      const double radius = std::max(scales_.patch_radius(j->node_a), scales_.patch_radius(j->node_b));
+      return at.component >= 3 ? k_translation * radius * radius : k_translation;
+    }
+    if (change.kind == ModelChange::Kind::AddJoint) {  // between two parts: the softer side decides
+      const Joint* added = find_joint(at.changed, at.entity);
+      return std::min(scales_.node_stiffness({added->node_a}), scales_.node_stiffness({added->node_b})) *
+             at.length_squared;
+    }
+    return scales_.node_stiffness(at.nodes) * at.length_squared;
+  }
+
+ public:
   std::vector<EffectCandidate> automatic() const {
     std::vector<std::pair<ModelChange, std::string>> changes;  // with a note for the words
     auto add = [&](const std::string& text, const std::string& note = "") {
