@@ -1,8 +1,42 @@
 #include "objective/deflated_solve.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace modalcal::detail {
+
+namespace {
+
+/// The solution's part in the computed modes other than each column's own: sum over k != own of
+/// u_k (u_k^T b) / (lambda_k - shift).
+Matrix modal_part(const DeflationBasis& basis, const std::vector<int>& own, const Vector& shift,
+                  const Matrix& coefficients) {
+  const Matrix& U = basis.modes;
+  Matrix part = Matrix::Zero(U.rows(), coefficients.cols());
+  for (int c = 0; c < coefficients.cols(); ++c)
+    for (int k = 0; k < U.cols(); ++k)
+      if (k != own[c]) part.col(c) += U.col(k) * (coefficients(k, c) / (basis.eigenvalues[k] - shift[c]));
+  return part;
+}
+
+/// Z's active columns <- the preconditioned residual, projected onto the complement of the modes.
+/// Only the unconverged columns go through the (block) preconditioner.
+void precondition_active(const Matrix& R, const std::vector<bool>& active, const DeflationBasis& basis,
+                         const std::function<Matrix(const Matrix&)>& precondition, Matrix* Z, int* column_solves) {
+  std::vector<int> columns;
+  for (int c = 0; c < static_cast<int>(active.size()); ++c)
+    if (active[c]) columns.push_back(c);
+  Matrix R_active(R.rows(), static_cast<Eigen::Index>(columns.size()));
+  for (size_t a = 0; a < columns.size(); ++a) R_active.col(static_cast<Eigen::Index>(a)) = R.col(columns[a]);
+  Matrix Z_active = precondition(R_active);
+  *column_solves += static_cast<int>(columns.size());
+  Z_active -= basis.modes * (basis.mass_modes.transpose() * Z_active);  // (I - U U^T M) Z
+  for (size_t a = 0; a < columns.size(); ++a) Z->col(columns[a]) = Z_active.col(static_cast<Eigen::Index>(a));
+}
+
+bool any_of(const std::vector<bool>& flags) { return std::find(flags.begin(), flags.end(), true) != flags.end(); }
+
+}  // namespace
 
 DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M, const DeflationBasis& basis,
                                    const std::vector<int>& own, const Matrix& B,
@@ -22,12 +56,9 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
 
   // Modal part, and the right-hand side left for the complement.
   const Matrix coefficients = U.transpose() * B;  // u_k^T b
-  for (int c = 0; c < m; ++c)
-    for (int k = 0; k < U.cols(); ++k)
-      if (k != own[c]) out.solution.col(c) += U.col(k) * (coefficients(k, c) / (basis.eigenvalues[k] - shift[c]));
+  out.solution = modal_part(basis, own, shift, coefficients);
   Matrix R = B - MU * coefficients;
 
-  auto project = [&](Matrix& Z) { Z -= U * (MU.transpose() * Z); };  // Z <- (I - U U^T M) Z
   auto apply = [&](const Matrix& P) -> Matrix { return K * P - (M * P) * shift.asDiagonal(); };
   // Converged relative to the whole right-hand side: when the computed modes carry all of it, the
   // remainder is round-off and needs no iteration.
@@ -36,17 +67,13 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
   std::vector<bool> active(m);
   for (int c = 0; c < m; ++c) active[c] = R.col(c).norm() > target[c];
 
-  Matrix Z = precondition(R);
-  out.column_solves += m;
-  project(Z);
+  Matrix Z = Matrix::Zero(n, m);
+  precondition_active(R, std::vector<bool>(m, true), basis, precondition, &Z, &out.column_solves);
   Matrix P = Z;
   Vector rz(m);
   for (int c = 0; c < m; ++c) rz[c] = R.col(c).dot(Z.col(c));
   Matrix Y = Matrix::Zero(n, m);
-  for (out.iterations = 0; out.iterations < max_iterations; ++out.iterations) {
-    bool any = false;
-    for (int c = 0; c < m; ++c) any = any || active[c];
-    if (!any) break;
+  for (out.iterations = 0; out.iterations < max_iterations && any_of(active); ++out.iterations) {
     const Matrix Q = apply(P);
     for (int c = 0; c < m; ++c) {
       if (!active[c]) continue;
@@ -65,17 +92,8 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
     R -= MU * (U.transpose() * R);
     for (int c = 0; c < m; ++c)
       if (active[c] && R.col(c).norm() <= target[c]) active[c] = false;
-    std::vector<int> columns;
-    for (int c = 0; c < m; ++c)
-      if (active[c]) columns.push_back(c);
-    if (columns.empty()) break;
-    // Only the unconverged columns go through the (block) preconditioner.
-    Matrix R_active(n, columns.size());
-    for (size_t a = 0; a < columns.size(); ++a) R_active.col(a) = R.col(columns[a]);
-    Matrix Z_active = precondition(R_active);
-    out.column_solves += static_cast<int>(columns.size());
-    project(Z_active);
-    for (size_t a = 0; a < columns.size(); ++a) Z.col(columns[a]) = Z_active.col(a);
+    if (!any_of(active)) break;
+    precondition_active(R, active, basis, precondition, &Z, &out.column_solves);
     for (int c = 0; c < m; ++c) {
       if (!active[c]) continue;
       const double rz_new = R.col(c).dot(Z.col(c));
