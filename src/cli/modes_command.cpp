@@ -26,6 +26,64 @@ struct ModesArgs {
   int num_modes = 0;
 };
 
+const char* const kDirections[3] = {"x", "y", "z"};
+
+/// The modes as a table: frequency, kinetic energy by direction, part translation, effective mass.
+void print_modes(const ModesArgs& args, const Problem& problem, const ParametricSystem& system, const ModalResult& result,
+                 const std::vector<ModeDescription>& modes, double seconds_analyze) {
+  std::printf("%s: %d DOFs, %d elements, parameters = %s\n", problem.path.c_str(), system.num_dofs(),
+              problem.model.num_elements(), args.params.source.c_str());
+  if (result.rigid_eigenvalues.size() > 0)
+    std::printf("rigid-body modes: %d (|f| < %.2e Hz)\n", static_cast<int>(result.rigid_eigenvalues.size()),
+                std::abs(frequency_hz(result.rigid_eigenvalues.cwiseAbs().maxCoeff())) + 1e-300);
+  std::printf("%4s %12s  %6s %6s %6s %6s  %6s %6s %6s  %6s %6s %6s  %3s  %-10s %9s\n", "mode", "freq [Hz]",
+              "KE x", "KE y", "KE z", "KE rot", "tr x", "tr y", "tr z", "meff x", "meff y", "meff z", "dir", "label",
+              "residual");
+  for (const ModeDescription& d : modes)
+    std::printf("%4d %12.3f  %6.3f %6.3f %6.3f %6.3f  %6.3f %6.3f %6.3f  %6.3f %6.3f %6.3f  %3s  %-10s %9.1e\n",
+                d.index, d.frequency_hz, d.energy_fraction[0], d.energy_fraction[1], d.energy_fraction[2],
+                d.rotational_fraction, d.part_translation_fraction[0], d.part_translation_fraction[1],
+                d.part_translation_fraction[2], d.effective_mass_fraction[0], d.effective_mass_fraction[1],
+                d.effective_mass_fraction[2], kDirections[d.dominant_direction], d.label.c_str(),
+                result.residuals[d.index - 1]);
+  std::printf("solve: %.3f s (analysis %.3f s, factorization %.3f s, %d solves, shift %.4g)\n",
+              result.seconds_total + seconds_analyze, seconds_analyze, result.seconds_factorize,
+              result.operator_solves, result.shift);
+
+}
+
+nlohmann::json modes_json(const ModesArgs& args, const Problem& problem, const ParametricSystem& system, const Vector& p,
+                          const ModalResult& result, const std::vector<ModeDescription>& modes, double seconds_analyze) {
+  nlohmann::json json;
+  json["problem"] = problem.path;
+  json["dofs"] = system.num_dofs();
+  json["elements"] = problem.model.num_elements();
+  json["parameter_source"] = args.params.source;
+  json["parameters"] = nlohmann::json::array();
+  for (size_t j = 0; j < problem.parameters.size(); ++j)
+    json["parameters"].push_back({{"name", problem.parameters[j].name}, {"value", p[j]}});
+  json["rigid_body_modes"] = nlohmann::json::array();
+  for (int k = 0; k < result.rigid_eigenvalues.size(); ++k)
+    json["rigid_body_modes"].push_back({{"frequency_hz", frequency_hz(result.rigid_eigenvalues[k])}});
+  json["modes"] = nlohmann::json::array();
+  for (const ModeDescription& d : modes)
+    json["modes"].push_back({{"index", d.index},
+                             {"frequency_hz", d.frequency_hz},
+                             {"dominant_direction", kDirections[d.dominant_direction]},
+                             {"label", d.label},
+                             {"energy_fraction", d.energy_fraction},
+                             {"rotational_fraction", d.rotational_fraction},
+                             {"effective_mass_fraction", d.effective_mass_fraction},
+                             {"part_translation_fraction", d.part_translation_fraction},
+                             {"residual", result.residuals[d.index - 1]}});
+  json["solve"] = {{"seconds", result.seconds_total + seconds_analyze},
+                   {"seconds_analyze", seconds_analyze},
+                   {"factorizations", result.factorizations},
+                   {"operator_solves", result.operator_solves},
+                   {"shift", result.shift}};
+  return json;
+}
+
 int run_modes(const ModesArgs& args) {
   Problem problem = load_problem(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
@@ -54,54 +112,8 @@ int run_modes(const ModesArgs& args) {
   }
   const std::vector<ModeDescription> modes = describe_modes(system, p, M, result);
 
-  std::printf("%s: %d DOFs, %d elements, parameters = %s\n", problem.path.c_str(), system.num_dofs(),
-              problem.model.num_elements(), args.params.source.c_str());
-  if (result.rigid_eigenvalues.size() > 0)
-    std::printf("rigid-body modes: %d (|f| < %.2e Hz)\n", static_cast<int>(result.rigid_eigenvalues.size()),
-                std::abs(frequency_hz(result.rigid_eigenvalues.cwiseAbs().maxCoeff())) + 1e-300);
-  std::printf("%4s %12s  %6s %6s %6s %6s  %6s %6s %6s  %6s %6s %6s  %3s  %-10s %9s\n", "mode", "freq [Hz]",
-              "KE x", "KE y", "KE z", "KE rot", "tr x", "tr y", "tr z", "meff x", "meff y", "meff z", "dir", "label",
-              "residual");
-  const char* dirs[3] = {"x", "y", "z"};
-  for (const ModeDescription& d : modes)
-    std::printf("%4d %12.3f  %6.3f %6.3f %6.3f %6.3f  %6.3f %6.3f %6.3f  %6.3f %6.3f %6.3f  %3s  %-10s %9.1e\n",
-                d.index, d.frequency_hz, d.energy_fraction[0], d.energy_fraction[1], d.energy_fraction[2],
-                d.rotational_fraction, d.part_translation_fraction[0], d.part_translation_fraction[1],
-                d.part_translation_fraction[2], d.effective_mass_fraction[0], d.effective_mass_fraction[1],
-                d.effective_mass_fraction[2], dirs[d.dominant_direction], d.label.c_str(),
-                result.residuals[d.index - 1]);
-  std::printf("solve: %.3f s (analysis %.3f s, factorization %.3f s, %d solves, shift %.4g)\n",
-              result.seconds_total + solver.seconds_analyze(), solver.seconds_analyze(), result.seconds_factorize,
-              result.operator_solves, result.shift);
-
-  nlohmann::json json;
-  json["problem"] = problem.path;
-  json["dofs"] = system.num_dofs();
-  json["elements"] = problem.model.num_elements();
-  json["parameter_source"] = args.params.source;
-  json["parameters"] = nlohmann::json::array();
-  for (size_t j = 0; j < problem.parameters.size(); ++j)
-    json["parameters"].push_back({{"name", problem.parameters[j].name}, {"value", p[j]}});
-  json["rigid_body_modes"] = nlohmann::json::array();
-  for (int k = 0; k < result.rigid_eigenvalues.size(); ++k)
-    json["rigid_body_modes"].push_back({{"frequency_hz", frequency_hz(result.rigid_eigenvalues[k])}});
-  json["modes"] = nlohmann::json::array();
-  for (const ModeDescription& d : modes)
-    json["modes"].push_back({{"index", d.index},
-                             {"frequency_hz", d.frequency_hz},
-                             {"dominant_direction", dirs[d.dominant_direction]},
-                             {"label", d.label},
-                             {"energy_fraction", d.energy_fraction},
-                             {"rotational_fraction", d.rotational_fraction},
-                             {"effective_mass_fraction", d.effective_mass_fraction},
-                             {"part_translation_fraction", d.part_translation_fraction},
-                             {"residual", result.residuals[d.index - 1]}});
-  json["solve"] = {{"seconds", result.seconds_total + solver.seconds_analyze()},
-                   {"seconds_analyze", solver.seconds_analyze()},
-                   {"factorizations", result.factorizations},
-                   {"operator_solves", result.operator_solves},
-                   {"shift", result.shift}};
-  write_json(args.json, json, problem);
+  print_modes(args, problem, system, result, modes, solver.seconds_analyze());
+  write_json(args.json, modes_json(args, problem, system, p, result, modes, solver.seconds_analyze()), problem);
   if (!args.vtu.empty()) {
     VtuFields fields;
     add_mode_fields(result, -1, &fields);
