@@ -37,7 +37,9 @@ TEST(Comparison, ModelAgainstItsOwnModesIsPerfect) {
     EXPECT_NEAR(c.mac(i, i), 1.0, 1e-9);
     EXPECT_NEAR(pair.cross_orthogonality, 1.0, 1e-9);
     for (int k = 0; k < 6; ++k)
-      if (k != i) EXPECT_NEAR(c.cross_orthogonality(i, k), 0.0, 1e-8) << i << " " << k;
+      if (k != i) {
+        EXPECT_NEAR(c.cross_orthogonality(i, k), 0.0, 1e-8) << i << " " << k;
+      }
   }
   EXPECT_TRUE(c.unpaired_measured.empty());
   // Every computed model mode beyond the six measured ones is unpaired.

@@ -283,10 +283,16 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   // reduction less 2 ln of how many candidates of its kind were screened); the rest by prediction.
   for (size_t k = 1; k < ranking.effects.size(); ++k) {
     const RankedEffect &a = ranking.effects[k - 1], &b = ranking.effects[k];
-    if (a.refitted && b.refitted && a.significant == b.significant) EXPECT_GE(a.score(), b.score());
-    if (a.refitted && b.refitted) EXPECT_GE(a.significant, b.significant);
-    if (!a.refitted) EXPECT_FALSE(b.refitted);
-    if (!a.refitted) EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
+    if (a.refitted && b.refitted && a.significant == b.significant) {
+      EXPECT_GE(a.score(), b.score());
+    }
+    if (a.refitted && b.refitted) {
+      EXPECT_GE(a.significant, b.significant);
+    }
+    if (!a.refitted) {
+      EXPECT_FALSE(b.refitted);
+      EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
+    }
   }
   // A kind: the change's kind and property; added point masses and regions' mass scales are one,
   // mass at a place.

@@ -50,7 +50,9 @@ TEST_P(ChainTest, GroundedChainMatchesClosedForm) {
   const double m = 2.0, k = 3.0e4;
   const Solved s = SolveModel(MakeChain(n, m, k, true), 8, 0);
   ASSERT_EQ(s.result.status, EigenStatus::Successful) << s.result.message;
-  if (n > 300) EXPECT_GT(s.result.block_size, 1) << "fell back to single-vector Lanczos";
+  if (n > 300) {
+    EXPECT_GT(s.result.block_size, 1) << "fell back to single-vector Lanczos";
+  }
   ASSERT_EQ(s.result.eigenvalues.size(), 8);
   EXPECT_EQ(s.result.rigid_eigenvalues.size(), 0);
   for (int j = 1; j <= 8; ++j) {

@@ -124,7 +124,9 @@ TEST(Pairing, ModesTheSensorsSeeAlikePairWithTheNearerEigenvalue) {
     const Evaluation e = objective.evaluate(p, Need::Value);
     ASSERT_TRUE(e.ok) << e.message;
     ASSERT_EQ(e.pairs[5].model, 5) << "nu = " << p[1];
-    if (std::isfinite(previous)) EXPECT_LT(std::abs(e.value - previous), 1e-3) << "nu = " << p[1];
+    if (std::isfinite(previous)) {
+      EXPECT_LT(std::abs(e.value - previous), 1e-3) << "nu = " << p[1];
+    }
     previous = e.value;
   }
 }

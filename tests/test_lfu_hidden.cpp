@@ -136,8 +136,8 @@ INSTANTIATE_TEST_SUITE_P(Cases, LfuHidden,
                          ::testing::Values(HiddenCase{"joint-rotation.yaml", true}, HiddenCase{"soft-foam.yaml", true},
                                            HiddenCase{"top-mass.yaml", true}, HiddenCase{"base-flexibility.yaml", true},
                                            HiddenCase{"control.yaml", true}, HiddenCase{"stiff-post.yaml", false}),
-                         [](const auto& info) {
-                           std::string name = info.param.file;
+                         [](const auto& test) {
+                           std::string name = test.param.file;
                            name = name.substr(0, name.find('.'));
                            name.erase(std::remove(name.begin(), name.end(), '-'), name.end());
                            return name;

@@ -135,7 +135,9 @@ void WriteExodus(const std::string& path, const ExodusMesh& mesh) {
     z.push_back(p.z());
   }
   ASSERT_GE(ex_put_coord(exo, x.data(), y.data(), mesh.dim == 3 ? z.data() : nullptr), 0);
-  if (!mesh.node_ids.empty()) ASSERT_GE(ex_put_id_map(exo, EX_NODE_MAP, mesh.node_ids.data()), 0);
+  if (!mesh.node_ids.empty()) {
+    ASSERT_GE(ex_put_id_map(exo, EX_NODE_MAP, mesh.node_ids.data()), 0);
+  }
   std::vector<std::string> names;
   for (const ExodusBlock& b : mesh.blocks) {
     const int64_t n = static_cast<int64_t>(b.connectivity.size()) / b.nodes_per_element;

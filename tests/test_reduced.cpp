@@ -95,8 +95,8 @@ TEST_P(Recovery, ModesThatSwapOrderStillConvergeToTheTruth) {
 
 INSTANTIATE_TEST_SUITE_P(Methods, Recovery,
                          ::testing::Values(ReducedOptions::Method::Lbfgs, ReducedOptions::Method::GaussNewton),
-                         [](const auto& info) {
-                           return info.param == ReducedOptions::Method::Lbfgs ? "Lbfgs" : "GaussNewton";
+                         [](const auto& test) {
+                           return test.param == ReducedOptions::Method::Lbfgs ? "Lbfgs" : "GaussNewton";
                          });
 
 TEST(Reduced, FailedForwardSolveInTheLineSearchBacktracks) {

@@ -163,7 +163,7 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(BarCase{"hex8", {8, 16, 32}, 3, 1.8, 2.2, 1e-2},
                       BarCase{"tet4", {8, 16, 32}, 3, 1.8, 2.2, 1e-2},
                       BarCase{"tet10", {2, 4, 8}, 3, 3.5, 4.5, 2e-3}),
-    [](const ::testing::TestParamInfo<BarCase>& info) { return std::string(info.param.element); });
+    [](const ::testing::TestParamInfo<BarCase>& test) { return std::string(test.param.element); });
 
 // Tensor-product hex8 with u_y = u_z = 0 and nu = 0 is exactly the 1-D rod of linear elements
 // with consistent mass, whose eigenvalues are known in closed form (the mode shapes

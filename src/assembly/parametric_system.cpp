@@ -421,7 +421,7 @@ std::string ParametricSystem::ill_conditioning(const Vector& p) const {
     const bool young = b.form == ElasticForm::YoungPoisson;
     const double bulk_per_shear = young ? 2 * (1 + m) / (3 * (1 - 2 * m)) : a / m;
     if (!(bulk_per_shear > 1e4)) continue;
-    char what[64], text[320];
+    char what[64], text[480];
     if (young)
       std::snprintf(what, sizeof what, "Poisson's ratio %.9g, so near 0.5,", m);
     else

@@ -1443,8 +1443,7 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
                          "extends " + quote(extends.Scalar()) + ": " + reason +
                              (ends_with(reason, "no such file") ? " (the path is relative to this file's folder)"
                                                                 : ""));
-    std::error_code ec;
-    const std::string canonical = std::filesystem::weakly_canonical(base_path, ec).string();
+    const std::string canonical = std::filesystem::weakly_canonical(base_path, ec).string();  // ec: above
     if (std::find(visited.begin(), visited.end(), canonical) != visited.end())
       throw ProblemError(file, line, "extends " + quote(extends.Scalar()) + ", which is already in the chain of "
                                      "extended files: the files extend each other in a loop");

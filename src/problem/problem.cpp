@@ -84,9 +84,9 @@ Vector Problem::truth_values() const {
   return collect(parameters, [](const Parameter& p) { return *p.truth; });
 }
 
-int Problem::find_parameter(const std::string& name) const {
+int Problem::find_parameter(const std::string& parameter) const {
   for (size_t i = 0; i < parameters.size(); ++i)
-    if (parameters[i].name == name) return static_cast<int>(i);
+    if (parameters[i].name == parameter) return static_cast<int>(i);
   return -1;
 }
 
