@@ -9,11 +9,11 @@
 //   model: block stiffness or mass scale, joint/spring component, support flexibility, sensor
 //   mass, spring between parts, spring or mass on a free node set, point mass or spring at a
 //   surface node (the spatial family), stiffness or mass scale of a block's region (a cube of the
-//   candidate grid); each family the model has is equally likely;
+//   candidate grid), Poisson's ratio of an (E, nu) block (nu0 +/- u within [0.05, 0.45]); each
+//   family the model has is equally likely;
 // - outside list: a point mass or a spring to ground at a node drawn among *all* free nodes of
 //   the blocks (interior ones included; the JSON says whether the node happens to be a spatial
-//   candidate), a changed Poisson's ratio of a block (no candidate sets nu), or a stiffer/softer
-//   part of a block that is no candidate region: the elements whose centroid lies within a drawn
+//   candidate), or a stiffer/softer part of a block that is no candidate region: the elements whose centroid lies within a drawn
 //   radius of a drawn node of the block (a ball, not a cube of the candidates' grid), which the
 //   benchmark moves into a new block with its own stiffness_scale (same material properties);
 // - multi: two or three effects at once, each drawn as for single or outside list;
@@ -45,11 +45,11 @@
 // Scores per case: flagged (the verdict, Diagnosis::model_form_error); the first accepted effect
 // kept by the backward pass has the right kind and place (the rules in kinds_match(): the same
 // candidate for joint, support and node-set truths, the right block's stiffness_scale or
-// mass_scale for block-wide truths, the block's stiffness_scale for Poisson and part-of-block
-// truths (or a local stiffness effect in the part), mass added at a place (a point mass or a
-// heavier region: one kind in the library's prior) or a spring to ground in the same direction
-// within two element sizes for node truths, and for heavier-region truths); every truth effect matched by some
-// kept effect; final residual p-value; relative error of the accepted value's change from nominal
+// mass_scale for block-wide truths, the block's nu for Poisson truths, the block's
+// stiffness_scale or a local stiffness effect in the part for part-of-block truths, mass added at
+// a place (a point mass or a heavier region: one kind in the library's prior) or a spring to
+// ground in the same direction within two element sizes for node truths and heavier-region
+// truths); every truth effect matched by some kept effect; final residual p-value; relative error of the accepted value's change from nominal
 // against the truth's (compliance for supports; not for Poisson or part-of-block truths);
 // wall and CPU seconds.
 //
@@ -182,7 +182,7 @@ const char* family_name(Family f) {
   return "?";
 }
 bool outside_list(Family f) {
-  return f == Family::AnyNodeMass || f == Family::AnyNodeSpring || f == Family::PartialBlock || f == Family::Poisson;
+  return f == Family::AnyNodeMass || f == Family::AnyNodeSpring || f == Family::PartialBlock;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -194,7 +194,7 @@ struct EffectSpec {
   Family family = Family::BlockStiffness;
   ModelChange change;          // value set from the amount (unused for PartialBlock)
   std::string name;            // canonical name on the problem's mesh ("partial:<block>" for a part)
-  std::string block;           // block-wide, Poisson and part-of-block truths
+  std::string block;           // block-wide, Poisson, part-of-block and region truths
   std::optional<Vec3> location;  // where it acts on the problem's mesh (none: block-wide)
   Vec3 region_center = Vec3::Zero();
   double region_radius = 0;
@@ -448,6 +448,7 @@ std::optional<Family> family_of(const EffectCandidate& c) {
     case ModelChange::Kind::SetProperty:
       if (ch.property == "stiffness_scale") return Family::BlockStiffness;
       if (ch.property == "mass_scale") return Family::BlockMass;
+      if (ch.property == "nu") return Family::Poisson;
       return Family::JointComponent;
     case ModelChange::Kind::FlexibleSupport: return Family::Support;
     case ModelChange::Kind::AddJoint: return Family::BetweenParts;
@@ -542,6 +543,9 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
     e.reference = c.reference;
     if (c.change.kind == ModelChange::Kind::SetProperty && (c.change.property == "stiffness_scale" || c.change.property == "mass_scale"))
       e.block = c.change.entity;
+    // A region's block too: another effect on that block (a part of it moved into a block of its
+    // own, or a second region) would clash with it in the truth model.
+    if (c.change.kind == ModelChange::Kind::AddRegion && !c.change.places.empty()) e.block = c.change.places[0].node_set;
     switch (c.variable) {
       case EffectCandidate::Variable::Log:
         e.map = draw.coin() ? Map::ScaleUp : Map::ScaleDown;
@@ -559,7 +563,7 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
         break;
     }
   };
-  if (!outside_list(family)) {
+  if (!outside_list(family) && family != Family::Poisson) {  // Poisson: drawn below, within physical bounds
     const auto it = ctx.family_candidates.find(family);
     if (it == ctx.family_candidates.end() || it->second.empty()) return std::nullopt;
     from_candidate(ctx.candidates[it->second[draw.index(static_cast<int>(it->second.size()))]]);
@@ -596,7 +600,7 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
   if (blocks.empty()) return std::nullopt;
   const ElementBlock& block = model.blocks[blocks[draw.index(static_cast<int>(blocks.size()))]];
   e.block = block.name;
-  e.in_list = false;
+  e.in_list = family == Family::Poisson;  // the library screens every (E, nu) block's nu
   if (family == Family::Poisson) {
     e.change = parse_model_change(model.properties[block.modulus_b].name + "=0.3");
     e.name = model.properties[block.modulus_b].name;
@@ -626,11 +630,11 @@ std::optional<EffectSpec> draw_effect(const ProblemContext& ctx, Family family, 
   return e;
 }
 
-const std::vector<Family> kListFamilies = {Family::BlockStiffness, Family::BlockMass,    Family::JointComponent,
-                                           Family::Support,        Family::SensorMass,   Family::BetweenParts,
-                                           Family::NodeSet,        Family::SurfaceNode,  Family::RegionScale};
-const std::vector<Family> kOutsideFamilies = {Family::AnyNodeMass, Family::AnyNodeSpring, Family::PartialBlock,
-                                              Family::Poisson};
+const std::vector<Family> kListFamilies = {Family::BlockStiffness, Family::BlockMass,   Family::JointComponent,
+                                           Family::Support,        Family::SensorMass,  Family::BetweenParts,
+                                           Family::NodeSet,        Family::SurfaceNode, Family::RegionScale,
+                                           Family::Poisson};
+const std::vector<Family> kOutsideFamilies = {Family::AnyNodeMass, Family::AnyNodeSpring, Family::PartialBlock};
 
 struct DrawOptions {
   double min_shift = 0.002, max_shift = 0.05;
@@ -791,8 +795,7 @@ bool kinds_match(const EffectSpec& t, const EffectCandidate& a, double value, co
     }
     case Family::PartialBlock:
       return (k.kind == AcceptedKind::BlockStiffness && k.entity == t.block) || (stiffness_local && near(t.region_radius));
-    case Family::Poisson:
-      return (k.kind == AcceptedKind::BlockStiffness || k.kind == AcceptedKind::Poisson) && k.entity == t.block;
+    case Family::Poisson: return k.kind == AcceptedKind::Poisson && k.entity == t.block;
   }
   return false;
 }

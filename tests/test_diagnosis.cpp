@@ -107,6 +107,15 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   EXPECT_EQ(scale->upper, 10);
   EXPECT_EQ(scale->description, "stiffness multiplier of block pad");
   EXPECT_TRUE(Find(candidates, "top.mass_scale"));
+  // Poisson's ratio of each (E, nu) block, within physical bounds; the pad, given by K and G, has none.
+  const EffectCandidate* nu = Find(candidates, "base.nu");
+  ASSERT_TRUE(nu);
+  EXPECT_EQ(nu->variable, EffectCandidate::Variable::Linear);
+  EXPECT_DOUBLE_EQ(nu->nominal, 0.3);
+  EXPECT_DOUBLE_EQ(nu->lower, 0.1);
+  EXPECT_DOUBLE_EQ(nu->upper, 0.49);
+  EXPECT_TRUE(Find(candidates, "top.nu"));
+  EXPECT_FALSE(Find(candidates, "pad.nu"));
   // The joint: its six components except the calibrated kx; present ones in decades, absent
   // (rotational) ones linear from 0 with a reference from the joint's stiffness and patch size.
   EXPECT_FALSE(Find(candidates, "j.kx"));
@@ -165,7 +174,7 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   CandidateOptions only_blocks;
   only_blocks.joints = only_blocks.node_sets = only_blocks.supports = only_blocks.sensor_masses =
       only_blocks.between_parts = only_blocks.spatial = only_blocks.regions = false;
-  EXPECT_EQ(generate_candidates(problem, only_blocks).size(), 6u);  // three blocks, two scales each
+  EXPECT_EQ(generate_candidates(problem, only_blocks).size(), 8u);  // three blocks, two scales each; two nu
 }
 
 TEST(EffectCandidates, DeclaredAndNamedEffects) {
@@ -424,6 +433,19 @@ TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
   CandidateOptions listed;
   listed.spatial = false;
   EXPECT_GT(d.ranking.screened, 3 * static_cast<int>(generate_candidates(hidden, listed).size()));
+}
+
+TEST(Diagnosis, APoissonsRatioNoScaleReproducesIsNamed) {
+  // The base's Poisson's ratio is 0.15, not 0.3: E_base, a calibration parameter, and the block
+  // scales change stiffness alike in every direction; nu changes bending against shear and the
+  // lateral strain, which the data see. The screen's Poisson candidate names it.
+  const Problem hidden = WithHiddenEffect({"base.nu=0.15"}, 45);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_FALSE(d.steps.empty()) << report;
+  EXPECT_EQ(d.steps[0].effect.candidate.name, "base.nu") << report;
+  EXPECT_NEAR(d.steps[0].effect.value, 0.15, 3 * d.steps[0].effect.standard_error + 0.01) << report;
+  EXPECT_FALSE(d.steps[0].location) << report;  // block-wide
 }
 
 TEST(Diagnosis, TheRegionScreenFindsAStifferPartOfABlock) {

@@ -116,7 +116,7 @@ struct EffectCandidate {
 
 /// Which automatic candidates to generate (all by default).
 struct CandidateOptions {
-  bool blocks = true;         ///< stiffness and mass scale per block
+  bool blocks = true;         ///< stiffness and mass scale per block, Poisson's ratio of an (E, nu) block
   bool joints = true;         ///< six components per joint and spring, mass per point mass
   bool node_sets = true;      ///< springs to ground and added masses per free node set
   bool supports = true;       ///< flexibility of each fixed node set, per fixed component

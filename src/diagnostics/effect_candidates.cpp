@@ -297,8 +297,12 @@ class CandidateFactory {
       changes.emplace_back(change, note);
     };
     if (options_.blocks)
-      for (const ElementBlock& b : model_.blocks)
+      for (const ElementBlock& b : model_.blocks) {
         for (const char* property : {"stiffness_scale", "mass_scale"}) add(b.name + "." + property);
+        // A material given by E and nu: its Poisson's ratio, which no scale reproduces (it
+        // changes bending against shear and the cross-section's lateral strain).
+        if (b.form == ElasticForm::YoungPoisson) add(model_.properties[b.modulus_b].name);
+      }
     if (options_.joints) {
       for (const Joint& j : model_.joints)
         for (const std::string& key : kStiffnessComponentNames)
