@@ -121,18 +121,22 @@ struct DiagnosisStep {
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated
 /// parameters; each measured frequency is moved by its mode's relative change on the finer mesh
-/// (what this mesh would show of it) and the parameters are recalibrated: the chi-square this
+/// (what this mesh would show of it), each measured shape by the mode's change at the sensors (in
+/// the shape's own scale), and the parameters are recalibrated: the chi-square this
 /// gains, with no free parameter added, tests "the residual is the mesh's". When it is
 /// significant the loop runs on the moved data, with the part extrapolation says even the finer
 /// mesh misses (r²/(r² − 1) − 1 times the change, for a frequency error of order h², r the
 /// ratio of element sizes from the DOF counts as (n_fine/n)^(1/3)) allowed as model error in
-/// each frequency (MeasuredMode::model_error). Shapes are left as they are.
+/// each frequency (MeasuredMode::model_error).
 struct DiscretizationEstimate {
   struct Mode {
     int measured = 0;  ///< 0-based
     std::string label;
     double shift_percent = 0;         ///< (finer mesh - this mesh) / this mesh, in %
     double extrapolated_percent = 0;  ///< (continuum - this mesh) / this mesh by extrapolation, in %
+    /// This mesh's mode at the sensors, and the finer mesh's (scaled onto it) less it; empty when
+    /// the two meshes' sensor readings differ in number.
+    Vector shape, shape_change;
   };
   double refinement = 0;  ///< r, the element-size ratio of the two meshes
   int dofs = 0, finer_dofs = 0;

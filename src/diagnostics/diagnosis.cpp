@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <stdexcept>
 
+#include "objective/shape_misfit.hpp"
+
 namespace modalcal {
 
 namespace {
@@ -430,11 +432,22 @@ DiscretizationEstimate estimate_discretization(const Problem& problem, const Pro
     throw std::invalid_argument("diagnose: the finer-mesh problem is not finer (" + std::to_string(est.finer_dofs) +
                                 " DOFs against " + std::to_string(est.dofs) + ")");
   const double richardson = est.refinement * est.refinement / (est.refinement * est.refinement - 1);
+  const SparseMatrix sensors_c = detail::sensor_matrix(problem, coarse.system().dof_map());
+  const SparseMatrix sensors_f = detail::sensor_matrix(finer, fine.system().dof_map());
   for (const PairedMode& c : ec.pairs)
     for (const PairedMode& f : ef.pairs)
       if (f.measured == c.measured) {
         const double shift = f.model_hz / c.model_hz - 1;
-        est.per_mode.push_back({c.measured, mode_label(problem, c.measured), 100 * shift, 100 * shift * richardson});
+        DiscretizationEstimate::Mode mode{c.measured, mode_label(problem, c.measured), 100 * shift,
+                                          100 * shift * richardson, {}, {}};
+        if (sensors_c.rows() == sensors_f.rows() && sensors_c.rows() > 0) {
+          // The finer mesh's shape at the sensors, scaled (and signed) onto this mesh's.
+          mode.shape = sensors_c * ec.modal.modes.col(c.model);
+          const Vector finer_shape = sensors_f * ef.modal.modes.col(f.model);
+          const double fit = finer_shape.dot(mode.shape) / std::max(finer_shape.squaredNorm(), 1e-300);
+          mode.shape_change = fit * finer_shape - mode.shape;
+        }
+        est.per_mode.push_back(std::move(mode));
       }
   est.critical_value = chi_square_critical_value(significance, 1);
   return est;
@@ -448,6 +461,12 @@ Problem corrected_for_mesh(const Problem& problem, const DiscretizationEstimate&
   for (const DiscretizationEstimate::Mode& m : est.per_mode) {
     MeasuredMode& measured = corrected.measured[m.measured];
     measured.frequency_hz /= 1 + m.shift_percent / 100;
+    // The shape: moved by the change at the sensors, in the measured shape's own scale, so that this
+    // mesh's mode meets it as the finer mesh's meets the data.
+    if (measured.shape.size() > 0 && measured.shape.size() == m.shape.size()) {
+      const double scale = measured.shape.dot(m.shape) / std::max(m.shape.squaredNorm(), 1e-300);
+      measured.shape -= scale * m.shape_change;
+    }
     if (allow_the_rest) measured.model_error = std::abs(m.extrapolated_percent - m.shift_percent) / 100;
   }
   return corrected;
