@@ -42,18 +42,6 @@ Bounds parameter_bounds(FullSpaceProblem& problem) {
   return {lower.tail(np), upper.tail(np)};
 }
 
-/// What the callback sees of iteration k (no complementarity or barrier here).
-NewtonIteration iteration_info(int k, double objective, double primal, double dual, double step_length, double shift) {
-  NewtonIteration info;
-  info.iteration = k;
-  info.objective = objective;
-  info.primal_infeasibility = primal;
-  info.dual_infeasibility = dual;
-  info.step_length = step_length;
-  info.hessian_shift = shift;
-  return info;
-}
-
 std::string outside_newton_region_message(bool accepted, double kkt_error) {
   return "block Newton: " +
          std::string(accepted ? "three steps in a row were cut by the line search or the trust region"
@@ -160,7 +148,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     const double dual = dual_infeasibility(kkt.lagrangian_gradient(), x.tail(np), bounds, q0);
     const double f0 = problem.objective(x.data());
     result.iterations = k;
-    if (callback && !callback(iteration_info(k, f0, primal, dual, last_step_length, last_shift), x.data())) {
+    if (callback && !callback(NewtonIteration::at(k, f0, primal, dual, last_step_length, last_shift), x.data())) {
       result.stopped_by_callback = true;
       return finish("User_Requested_Stop", false, "");
     }

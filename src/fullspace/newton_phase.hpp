@@ -30,6 +30,19 @@ struct NewtonIteration {
   double objective = 0, primal_infeasibility = 0, dual_infeasibility = 0, complementarity = 0, mu = 0;
   double step_length = 0;    ///< of the step that led here (0 at the start)
   double hessian_shift = 0;  ///< added to the Hessian for that step (inertia correction)
+
+  /// Iteration k at `objective` with these infeasibilities, after a step of `step_length` on a
+  /// Hessian shifted by `shift` (complementarity and mu stay 0 where the solver has none).
+  static NewtonIteration at(int k, double objective, double primal, double dual, double step_length, double shift) {
+    NewtonIteration info;
+    info.iteration = k;
+    info.objective = objective;
+    info.primal_infeasibility = primal;
+    info.dual_infeasibility = dual;
+    info.step_length = step_length;
+    info.hessian_shift = shift;
+    return info;
+  }
 };
 
 /// Called after every iteration with the current unknowns; returning false stops the solver.

@@ -142,14 +142,9 @@ class CalibrationTnlp : public Ipopt::TNLP {
                              const Ipopt::IpoptData* data, Ipopt::IpoptCalculatedQuantities* quantities) override {
     result_->iterations = iter;
     if (!callback_) return true;
-    NewtonIteration info;
-    info.iteration = iter;
-    info.objective = objective;
-    info.primal_infeasibility = inf_pr;
-    info.dual_infeasibility = inf_du;
+    NewtonIteration info =
+        NewtonIteration::at(iter, objective, inf_pr, inf_du, iter == 0 ? 0 : alpha_pr, regularization_size);
     info.mu = mu;
-    info.step_length = iter == 0 ? 0 : alpha_pr;
-    info.hessian_shift = regularization_size;
     // The iterate, in the TNLP's ordering; unavailable during the restoration phase.
     const double* x = nullptr;
     if (mode == Ipopt::RegularMode && data && quantities) {
