@@ -62,6 +62,18 @@ def main(root):
         problems.append("src/CMakeLists.txt: MODALCAL_STAGES is not the table's order of library stages: "
                         + " ".join(library_stages))
 
+    # Sources are listed, not globbed: each stage folder's .cpp files (and the tool's) in
+    # src/CMakeLists.txt, the test files in tests/CMakeLists.txt.
+    listed = set(re.findall(r"[\w/]+\.cpp", cmake))
+    for folder in [folder for _, folder, _ in rows]:
+        for source in sorted((root / "src" / folder).glob("*.cpp")):
+            if f"{folder}/{source.name}" not in listed:
+                problems.append(f"src/{folder}/{source.name}: not listed in src/CMakeLists.txt, so not built")
+    test_cmake = (root / "tests" / "CMakeLists.txt").read_text(encoding="utf-8")
+    for source in sorted((root / "tests").glob("test_*.cpp")):
+        if source.name not in re.findall(r"[\w]+\.cpp", test_cmake):
+            problems.append(f"tests/{source.name}: not listed in tests/CMakeLists.txt, so not built")
+
     def stage_of_include(name):
         if name.startswith("modalcal/"):
             return header_stage.get(name[len("modalcal/"):])
