@@ -208,7 +208,7 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     r.seconds = seconds_since(t0);
     r.cpu_s = cpu_seconds() - cpu0;
     r.ok = summary.converged();
-    set_status(&r, to_string(summary.termination));
+    set_status(&r, to_string(summary.status));
     r.iterations = summary.iterations;
     r.forward_solves = summary.forward_solves;
     if (summary.final.size()) r.final_error = parameter_error(problem, summary.final);

@@ -97,7 +97,7 @@ MethodResult run_method(const Problem& problem, const std::string& method, const
                                           : "L-BFGS, central-difference gradient";
     r.iterations = s.iterations;
     r.converged = s.converged();
-    r.termination = to_string(s.termination);
+    r.termination = to_string(s.status);
     if (s.final.size()) {
       r.parameter_error = parameter_error(problem, s.final);
       r.final_objective = s.final_objective;

@@ -128,7 +128,7 @@ TEST(Reduced, UnevaluableStartEndsWithStatusAndReason) {
   options.use_bounds = false;
   options.scaling = Scaling::None;
   const ReducedSummary s = minimize_reduced(objective, start, options);
-  EXPECT_EQ(s.termination, TerminationType::ForwardSolveFailed);
+  EXPECT_EQ(s.status, ReducedStatus::ForwardSolveFailed);
   EXPECT_NE(s.message.find("indefinite"), std::string::npos) << s.message;
 }
 

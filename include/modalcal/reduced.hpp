@@ -25,7 +25,7 @@
 ///
 /// A forward solve that fails at a trial point (e.g. a negative modulus without bounds) counts
 /// as an infinite objective: the search backtracks instead of aborting. Every run ends with a
-/// termination type, the best iterate and the reason.
+/// status (ReducedStatus), the best iterate and the reason.
 ///
 /// \code
 /// modalcal::Objective objective(problem);
@@ -43,13 +43,15 @@
 
 namespace modalcal {
 
-enum class TerminationType {
+/// How a reduced-space run ended; the words are FullSpaceStatus's where the two share a case, and
+/// `to_string` gives both in one vocabulary (Converged, MaxIterations, ForwardSolveFailed, ...).
+enum class ReducedStatus {
   Converged,           ///< projected gradient below tolerance
   MaxIterations,
   LineSearchFailed,    ///< no decrease along the search direction (at the best point found)
   ForwardSolveFailed,  ///< the initial point could not be evaluated
 };
-std::string to_string(TerminationType type);
+std::string to_string(ReducedStatus status);
 
 struct IterationRecord {
   int iteration = 0;
@@ -93,7 +95,7 @@ struct ReducedOptions {
 };
 
 struct ReducedSummary {
-  TerminationType termination = TerminationType::ForwardSolveFailed;
+  ReducedStatus status = ReducedStatus::ForwardSolveFailed;
   std::string message;
   std::string method;
   Vector initial, final;            ///< physical parameters; final is the best iterate
@@ -107,7 +109,7 @@ struct ReducedSummary {
   /// Order of convergence of the projected-gradient norm in the last iterations
   /// (estimate_convergence_order); NaN when too few iterations show a rate.
   double convergence_order = NAN;
-  bool converged() const { return termination == TerminationType::Converged; }
+  bool converged() const { return status == ReducedStatus::Converged; }
   std::string BriefReport() const;
   std::string FullReport() const;
 };

@@ -186,7 +186,7 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
     report.summary = summary_json(problem, summary);
     // L-BFGS often ends on its line search at the rounding floor with a perfect fit: any end
     // with a final iterate is a result; the status in the report says how it ended.
-    usable = summary.termination != TerminationType::ForwardSolveFailed && summary.final.size() > 0;
+    usable = summary.status != ReducedStatus::ForwardSolveFailed && summary.final.size() > 0;
     final = summary.final;
   }
   report.settings = {{"scaling", args.scaling.empty() ? "problem file" : args.scaling},

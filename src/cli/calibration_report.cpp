@@ -184,7 +184,7 @@ nlohmann::json summary_json(const Problem& problem, const ReducedSummary& summar
   nlohmann::json json = {{"problem", problem.path},
           {"method", summary.method},
           {"converged", summary.converged()},
-          {"status", to_string(summary.termination)},
+          {"status", to_string(summary.status)},
           {"message", summary.message},
           {"iterations", summary.iterations},
           {"initial_objective", summary.initial_objective},

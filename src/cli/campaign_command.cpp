@@ -82,7 +82,7 @@ nlohmann::json calibrate_one(const CampaignArgs& args, const std::string& data, 
     options.profiles = false;  // a campaign's many runs: the Laplace intervals
     const Uncertainty uncertainty = estimate_uncertainty(problem, fit.final, options);
     run["ok"] = true;
-    run["status"] = to_string(fit.termination);
+    run["status"] = to_string(fit.status);
     run["iterations"] = fit.iterations;
     run["statistic"] = json_number(uncertainty.statistic);
     run["parameters"] = nlohmann::json::array();

@@ -92,11 +92,11 @@ int run_bounds_scaling(const StudyArgs& args) {
     const double orders = std::log10(g0 / last.gradient_norm);
     std::printf("%-24s %6d %8d %12.3e %14.3e %14.1f %12.3e  %s\n", c.name.c_str(), s.iterations, s.forward_solves,
                 last.objective / j0, last.gradient_norm / g0, orders, last.parameter_error,
-                to_string(s.termination).c_str());
+                to_string(s.status).c_str());
     json.push_back({{"case", c.name}, {"iterations", s.iterations}, {"forward_solves", s.forward_solves},
                     {"relative_objective", last.objective / j0}, {"relative_gradient", last.gradient_norm / g0},
                     {"gradient_orders", orders}, {"parameter_error", last.parameter_error},
-                    {"status", to_string(s.termination)}});
+                    {"status", to_string(s.status)}});
   }
   const std::string csv_path = output_path(args, "bounds_scaling.csv");
   write_file_atomically(csv_path, csv.str(), problem.source_files);

@@ -556,7 +556,7 @@ std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   std::string text;
   char line[320];
   std::snprintf(line, sizeof line, "calibration: %s after %d iterations, %d forward solves\n",
-                to_string(d.calibration.termination).c_str(), d.calibration.iterations, d.calibration.forward_solves);
+                to_string(d.calibration.status).c_str(), d.calibration.iterations, d.calibration.forward_solves);
   text += line;
   for (size_t j = 0; j < problem.parameters.size(); ++j) {
     std::snprintf(line, sizeof line, "  %-20s %13.5g\n", problem.parameters[j].name.c_str(), d.calibration.final[j]);

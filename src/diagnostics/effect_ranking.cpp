@@ -156,7 +156,7 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   p0[np] = start;
   const ReducedSummary refit = minimize_reduced(refit_objective, p0, options.refit);
   TaskCodec outcome;
-  outcome.put(static_cast<double>(static_cast<int>(refit.termination)));
+  outcome.put(static_cast<double>(static_cast<int>(refit.status)));
   outcome.put(static_cast<double>(refit.iterations));
   outcome.put(refit.message);
   outcome.put(refit.final);
@@ -339,7 +339,7 @@ void refit_best(const Problem& problem, const RankingOptions& options, const Eff
   for (size_t i = 0; i < chosen.size(); ++i) {
     RankedEffect& ranked = (*screened)[chosen[i]];
     TaskCodec outcome(outcomes[i]);
-    ranked.refit.termination = static_cast<TerminationType>(static_cast<int>(outcome.get_number()));
+    ranked.refit.status = static_cast<ReducedStatus>(static_cast<int>(outcome.get_number()));
     ranked.refit.iterations = static_cast<int>(outcome.get_number());
     ranked.refit.message = outcome.get_text();
     ranked.refit.final = outcome.get_vector();

@@ -12,12 +12,12 @@
 
 namespace modalcal {
 
-std::string to_string(TerminationType type) {
-  switch (type) {
-    case TerminationType::Converged: return "Converged";
-    case TerminationType::MaxIterations: return "MaxIterations";
-    case TerminationType::LineSearchFailed: return "LineSearchFailed";
-    case TerminationType::ForwardSolveFailed: return "ForwardSolveFailed";
+std::string to_string(ReducedStatus status) {
+  switch (status) {
+    case ReducedStatus::Converged: return "Converged";
+    case ReducedStatus::MaxIterations: return "MaxIterations";
+    case ReducedStatus::LineSearchFailed: return "LineSearchFailed";
+    case ReducedStatus::ForwardSolveFailed: return "ForwardSolveFailed";
   }
   return "?";
 }
@@ -161,7 +161,7 @@ class ReducedRun {
       if (problem_.scaling().scaling(j) == Scaling::None && x0[j] != 0) unit_[j] = std::abs(x0[j]);
     current_ = problem_.evaluate(x0, need_);
     if (!current_.ok)
-      return finish(TerminationType::ForwardSolveFailed, "cannot evaluate the start: " + current_.message);
+      return finish(ReducedStatus::ForwardSolveFailed, "cannot evaluate the start: " + current_.message);
     summary_.initial_objective = current_.value;
     record(0, 0);
     tolerance_ = std::max(options_.gradient_tolerance,
@@ -169,8 +169,8 @@ class ReducedRun {
     for (int k = 1; k <= options_.max_iterations; ++k)
       if (std::optional<ReducedSummary> done = iterate(k)) return *done;
     if (summary_.history.back().gradient_norm <= tolerance_)
-      return finish(TerminationType::Converged, "projected gradient norm below tolerance");
-    return finish(TerminationType::MaxIterations, "reached max_iterations = " + std::to_string(options_.max_iterations));
+      return finish(ReducedStatus::Converged, "projected gradient norm below tolerance");
+    return finish(ReducedStatus::MaxIterations, "reached max_iterations = " + std::to_string(options_.max_iterations));
   }
 
  private:
@@ -183,17 +183,17 @@ class ReducedRun {
     if (gradient_norm <= tolerance_) {
       char message[160];
       std::snprintf(message, sizeof message, "projected gradient norm %.3e <= tolerance %.3e", gradient_norm, tolerance_);
-      return finish(TerminationType::Converged, message);
+      return finish(ReducedStatus::Converged, message);
     }
     Vector direction;
     Point next = step(&direction);
-    if (!next.ok) return finish(TerminationType::LineSearchFailed, next.message);
+    if (!next.ok) return finish(ReducedStatus::LineSearchFailed, next.message);
     const Vector s = next.x - current_.x;
     if (second_order_) {
       use_exact_hessian_ = newton_ && next.value > 0.8 * current_.value;
       next = problem_.evaluate(next.x, use_exact_hessian_ ? Need::Hessian : Need::Jacobian);
       if (!next.ok)
-        return finish(TerminationType::ForwardSolveFailed, "derivatives at the accepted point: " + next.message);
+        return finish(ReducedStatus::ForwardSolveFailed, "derivatives at the accepted point: " + next.message);
       // Full steps mean the Gauss-Newton model is good: trust it more; backtracking: less.
       damping_ = (s - direction).norm() <= 1e-12 * direction.norm() ? damping_ / 10 : std::min(damping_ * 10, 1.0);
       damping_ = std::max(damping_, 1e-12);
@@ -210,7 +210,7 @@ class ReducedRun {
       std::snprintf(message, sizeof message,
                     "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
                     decrease, options_.function_tolerance);
-      return finish(TerminationType::Converged, message);
+      return finish(ReducedStatus::Converged, message);
     }
     return std::nullopt;
   }
@@ -253,8 +253,8 @@ class ReducedRun {
     if (options_.progress) options_.progress(r);
   }
 
-  ReducedSummary finish(TerminationType type, const std::string& message) {
-    summary_.termination = type;
+  ReducedSummary finish(ReducedStatus type, const std::string& message) {
+    summary_.status = type;
     summary_.message = message;
     if (current_.ok) {
       summary_.final = current_.p;
@@ -307,7 +307,7 @@ std::string ReducedSummary::BriefReport() const {
   std::snprintf(line, sizeof line,
                 "%s: %s after %d iterations, objective %.6e -> %.6e, %d forward solves (%d failed), %d linear "
                 "solves, order %.2f, %.2f s",
-                method.c_str(), to_string(termination).c_str(), iterations, initial_objective, final_objective,
+                method.c_str(), to_string(status).c_str(), iterations, initial_objective, final_objective,
                 forward_solves, failed_evaluations, linear_solves, convergence_order, seconds);
   return line;
 }
