@@ -17,7 +17,7 @@
 #include "modalcal/effects.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/vtu.hpp"

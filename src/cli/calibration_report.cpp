@@ -7,7 +7,7 @@
 
 #include "cli/cli_common.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 
 namespace modalcal::cli {
 

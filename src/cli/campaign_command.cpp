@@ -18,7 +18,7 @@
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/uncertainty.hpp"

@@ -13,7 +13,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/comparison.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {

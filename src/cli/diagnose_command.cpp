@@ -15,7 +15,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {

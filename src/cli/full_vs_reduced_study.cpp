@@ -23,7 +23,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"

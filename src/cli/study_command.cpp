@@ -18,7 +18,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/identifiability.hpp"
 #include "modalcal/output.hpp"
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
 

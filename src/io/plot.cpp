@@ -1,4 +1,4 @@
-#include "modalcal/plot.hpp"
+#include "io/plot.hpp"
 
 #include <algorithm>
 #include <cmath>

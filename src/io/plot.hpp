@@ -1,9 +1,10 @@
 #pragma once
 /// \file plot.hpp
-/// Plots through gnuplot (Debian gnuplot-nox): convergence curves, heat maps (MAC matrices) and
-/// bar charts (frequency errors). The data and the script go to a temporary directory, gnuplot
-/// renders to a temporary file, which is then renamed onto the target, so a failed plot never
-/// leaves half a file. The file name's extension (.png or .svg) chooses the format.
+/// Internal (the tool's, not the library's API): plots through gnuplot (Debian gnuplot-nox),
+/// convergence curves, heat maps (MAC matrices) and bar charts (frequency errors). The data and
+/// the script go to a temporary directory, gnuplot renders to a temporary file, which is then
+/// renamed onto the target, so a failed plot never leaves half a file. The file name's extension
+/// (.png or .svg) chooses the format.
 
 #include <string>
 #include <vector>
