@@ -271,17 +271,23 @@ double lr_statistic(const Diagnosis& d, const LoopState& without, const LoopStat
   return increase / (with.fit.statistic / std::max(1, dof));
 }
 
-/// `state` without its effect `k`, the rest refitted; nullopt when the calibration cannot start.
+/// `state` without its effect `k` from calibrate_without()'s result `refit`; nullopt when that
+/// calibration could not start.
+std::optional<LoopState> state_without(const Problem& fitted, const LoopState& state, size_t k, const std::string& refit,
+                                       const DiagnosisOptions& options) {
+  const Vector calibrated = TaskCodec(refit).get_vector();
+  if (calibrated.size() == 0) return std::nullopt;
+  return make_state(fitted, effects_without(state, k), calibrated, options.test);
+}
+
+/// `state` without each of its effects in turn, the rest refitted (through the task map).
 std::vector<std::optional<LoopState>> states_without_each(const Problem& fitted, const LoopState& state,
                                                           const DiagnosisOptions& options) {
   const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> refits =
       map(state.effects.size(), [&](size_t k) { return calibrate_without(fitted, state, k, options); });
   std::vector<std::optional<LoopState>> without(state.effects.size());
-  for (size_t k = 0; k < state.effects.size(); ++k) {
-    const Vector calibrated = TaskCodec(refits[k]).get_vector();
-    if (calibrated.size() > 0) without[k] = make_state(fitted, effects_without(state, k), calibrated, options.test);
-  }
+  for (size_t k = 0; k < state.effects.size(); ++k) without[k] = state_without(fitted, state, k, refits[k], options);
   return without;
 }
 
@@ -328,10 +334,12 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
   if (state->effects.size() < first + 2) return;
   const Eigen::Index np = static_cast<Eigen::Index>(fitted.parameters.size());
   for (size_t k = first; k < state->effects.size(); ++k) {
-    const Vector calibrated = TaskCodec(calibrate_without(fitted, *state, k, options)).get_vector();
     const DiagnosisStep* incumbent = step_that_added(*d, state->effects[k].name);
-    if (calibrated.size() == 0 || !incumbent) continue;
-    const LoopState without = make_state(fitted, effects_without(*state, k), calibrated, options.test);
+    const std::optional<LoopState> refitted =
+        incumbent ? state_without(fitted, *state, k, calibrate_without(fitted, *state, k, options), options)
+                  : std::nullopt;
+    if (!refitted) continue;
+    const LoopState& without = *refitted;
     const EffectRanking ranking = rank_effects(without.problem, without.parameters,
                                                generate_candidates(without.problem, options.candidates), options.ranking);
     const RankedEffect* best = acceptable(ranking);
