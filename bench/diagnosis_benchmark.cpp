@@ -466,6 +466,7 @@ ProblemContext make_context(const std::string& path, const MeasurementNoise& noi
   ProblemContext ctx;
   ctx.path = path;
   ctx.problem = load_problem(path);
+  synthesize_measured(&ctx.problem);
   ctx.noise = noise;
   ctx.refinement = file_refinement(path);
   if (!ctx.problem.synthetic) throw std::invalid_argument(path + ": needs measured: synthetic (the truth modes to measure)");
@@ -506,6 +507,7 @@ void find_fine_ratios(ProblemContext* ctx, const std::vector<double>& ratios) {
   for (double r : ratios) {
     try {
       Problem fine = load_problem(ctx->path, LoadOptions{r * ctx->refinement});
+      synthesize_measured(&fine);
       if (fine.sensors.size() != ctx->problem.sensors.size()) throw std::runtime_error("another number of sensors");
       double offset = 0;
       for (size_t s = 0; s < fine.sensors.size(); ++s) {
@@ -998,6 +1000,7 @@ int main(int argc, char** argv) {
       load.refinement = ctx.refinement * args.mesh_check;
       load.nearest_sensor_nodes = true;
       ctx.check = load_problem(ctx.path, load);
+      synthesize_measured(&*ctx.check);
       std::printf("# discretization estimate on a mesh x%g: %d nodes\n", args.mesh_check, ctx.check->model.num_nodes());
     }
     const int n_cases = list_value(args.cases, j), n_controls = list_value(args.controls, j);

@@ -27,6 +27,7 @@
 #include "modalcal/output.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 using namespace modalcal;
 using modalcal::bench::parse_list;
@@ -52,6 +53,7 @@ CaseResult run_case(const std::string& problem_path, double refinement, int mode
   r.refinement = refinement;
   r.modes = modes;
   Problem problem = load_problem(problem_path, LoadOptions{refinement});
+  synthesize_measured(&problem);
   auto t0 = Clock::now();
   ParametricSystem system(problem.model, problem.parameter_targets());
   SparseMatrix K, M;

@@ -78,6 +78,7 @@
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 using namespace modalcal;
 using modalcal::bench::parse_list;
@@ -172,6 +173,7 @@ double parameter_error(const Problem& problem, const Vector& p) {
 void run_case(const Settings& s, double refinement, Method method, CaseResult& r) {
   const auto setup_start = Clock::now();
   Problem problem = load_problem(s.problem_path, LoadOptions{refinement});
+  synthesize_measured(&problem);
   if (!problem.has_truth()) throw std::invalid_argument(s.problem_path + ": the benchmark needs truth values");
   if (static_cast<int>(problem.measured.size()) < s.modes)
     throw std::invalid_argument(s.problem_path + " has only " + std::to_string(problem.measured.size()) +

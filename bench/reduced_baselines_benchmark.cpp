@@ -38,6 +38,7 @@
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 #ifdef MODALCAL_WITH_ROL
 #include "rol_baseline.hpp"
 #endif
@@ -338,7 +339,8 @@ int run(int argc, char** argv) {
                          {"gauss_newton_max_iterations", gauss_newton_max_iterations},
                          {"cases", nlohmann::json::array()}};
   for (double refinement : refinements) {
-    const Problem problem = load_problem(problem_path, LoadOptions{refinement});
+    Problem problem = load_problem(problem_path, LoadOptions{refinement});
+    synthesize_measured(&problem);
     if (!problem.has_truth()) throw std::invalid_argument(problem_path + ": needs truth values for every parameter");
     const int dofs = ParametricSystem(problem.model, problem.parameter_targets()).num_dofs();
     std::printf("\nrefinement %.2f: %d DOFs, %zu parameters, %zu measured modes; load average %s\n", refinement,

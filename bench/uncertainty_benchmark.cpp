@@ -59,7 +59,8 @@ Args parse(int argc, char** argv) {
 }
 
 int run(const Args& args) {
-  const Problem nominal = load_problem(args.problem);
+  Problem nominal = load_problem(args.problem);
+  synthesize_measured(&nominal);
   if (!nominal.synthetic || !nominal.has_truth())
     throw std::invalid_argument(args.problem + ": needs synthetic measured data and truth values");
   const int np = static_cast<int>(nominal.parameters.size());

@@ -15,13 +15,16 @@
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;
   const std::string path = argc > 1 ? argv[1] : std::string(MODALCAL_SOURCE_DIR) + "/problems/lfu/synthetic.yaml";
 
-  // 1. The problem carries parameters (start, bounds, scaling, truth) and measured modes.
-  const Problem problem = load_problem(path);
+  // 1. The problem carries parameters (start, bounds, scaling, truth) and measured modes; those of
+  //    a `measured: synthetic:` section are computed from the model at the truth values.
+  Problem problem = load_problem(path);
+  synthesize_measured(&problem);
 
   // 2. The objective pairs measured and model modes at every evaluation and gives exact
   //    gradients by the adjoint method.

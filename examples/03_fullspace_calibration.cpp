@@ -17,12 +17,14 @@
 #include "modalcal/fullspace.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;
   const std::string path =
       argc > 1 ? argv[1] : std::string(MODALCAL_SOURCE_DIR) + "/problems/portal-frame/synthetic.yaml";
-  const Problem problem = load_problem(path);
+  Problem problem = load_problem(path);
+  synthesize_measured(&problem);  // the measured modes of its `measured: synthetic:` section
   Objective objective(problem);
 
   // 1. The full-space unknowns are every mode, every eigenvalue and the parameters; check the

@@ -18,6 +18,7 @@
 #include "modalcal/comparison.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 int main(int argc, char** argv) {
   using namespace modalcal;
@@ -25,7 +26,8 @@ int main(int argc, char** argv) {
 
   // 1. The problem: nominal model, five calibration parameters, measured modes with their noise
   //    (the data file's `noise:`), and, for synthetic data, the truth they were made from.
-  const Problem problem = load_problem(path);
+  Problem problem = load_problem(path);
+  synthesize_measured(&problem);  // a synthetic section's modes, from the truth model (none: no-op)
   if (!problem.measurement_noise) {
     std::cerr << path << " states no measurement noise (measured: {noise: ...}): nothing to test against\n";
     return 1;

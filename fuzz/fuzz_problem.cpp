@@ -14,7 +14,7 @@
 // Kept cheap so that a million executions fit in an hour: meshes whose modal solve would need
 // more than 50 MB (about 1,600 nodes: the portal frame and the propped cantilever load whole,
 // the LFU's 3,500 to 5,000 nodes are refused) are refused (LoadOptions::memory_bytes), synthetic
-// measurements are checked but not computed (LoadOptions::synthesize = false), and sibling files
+// measurements are checked but not computed (load_problem never solves the truth model), and sibling files
 // over 64 kB (bracket.msh, the large universal files) are left out: loading reads, meshes and
 // validates the problem, and never assembles or solves it. fuzz/seeds/problem/ has small problems
 // that use a mesh file and test data, as the bundled ones that did are now refused early.
@@ -62,7 +62,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       [](const std::string& path) {
         modalcal::LoadOptions options;
         options.memory_bytes = 5e7;
-        options.synthesize = false;
         (void)modalcal::load_problem(path, options);
       },
       problem_dir());

@@ -15,6 +15,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 // Two blocks (E/nu and K/G forms, with stiffness and mass scales), a rigid coupling, a joint
@@ -67,7 +68,7 @@ struct Fixture {
 
 Fixture Load() {
   Fixture f;
-  f.problem = load_problem(WriteTempFile("every_kind.yaml", kEveryKind));
+  f.problem = LoadProblem(WriteTempFile("every_kind.yaml", kEveryKind));
   f.system = std::make_unique<ParametricSystem>(f.problem.model, f.problem.parameter_targets());
   f.p0 = f.problem.initial_values();
   return f;

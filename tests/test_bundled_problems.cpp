@@ -19,6 +19,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 
 // Checks shared by the problems: truth values known, log scaling, initial values off the truth,
@@ -59,7 +60,7 @@ void ExpectLbfgsRecoversTruth(const Problem& problem) {
 }
 
 TEST(BundledProblems, PortalFrameIsAShapeStudyWithAMassParameter) {
-  const Problem problem = load_problem(SourcePath("problems/portal-frame/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml"));
   ASSERT_EQ(problem.parameters.size(), 4u);
   EXPECT_EQ(problem.model.joints.size(), 2u);
   EXPECT_EQ(problem.model.point_masses.size(), 1u);
@@ -74,11 +75,11 @@ TEST(BundledProblems, PortalFrameIsAShapeStudyWithAMassParameter) {
 }
 
 TEST(BundledProblems, PortalFrameLbfgsRecoversTruthFromInitialPoint) {
-  ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/portal-frame/synthetic.yaml")));
+  ExpectLbfgsRecoversTruth(LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml")));
 }
 
 TEST(BundledProblems, ProppedCantileverIsAnEigenvalueOnlyStudy) {
-  const Problem problem = load_problem(SourcePath("problems/propped-cantilever/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/propped-cantilever/synthetic.yaml"));
   ASSERT_EQ(problem.parameters.size(), 3u);
   EXPECT_GE(problem.find_parameter("tip_mass"), 0);
   EXPECT_TRUE(problem.sensors.empty());
@@ -94,13 +95,13 @@ TEST(BundledProblems, ProppedCantileverIsAnEigenvalueOnlyStudy) {
 }
 
 TEST(BundledProblems, ProppedCantileverLbfgsRecoversTruthFromInitialPoint) {
-  ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/propped-cantilever/synthetic.yaml")));
+  ExpectLbfgsRecoversTruth(LoadProblem(SourcePath("problems/propped-cantilever/synthetic.yaml")));
 }
 
 // A mesh not made by the built-in generator: the committed Gmsh file loads with its physical
 // groups, the bolts' springs sit on the hole walls' node sets, and the study is well posed.
 TEST(BundledProblems, BracketIsAGmshMeshedShapeStudy) {
-  const Problem problem = load_problem(SourcePath("problems/bracket/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/bracket/synthetic.yaml"));
   ASSERT_EQ(problem.model.blocks.size(), 1u);
   EXPECT_EQ(problem.model.blocks[0].type, SolidType::Tet10);
   for (const char* set : {"bolt_hole_1", "bolt_hole_2", "tip_hole", "base_bottom"})
@@ -122,14 +123,14 @@ TEST(BundledProblems, BracketIsAGmshMeshedShapeStudy) {
 }
 
 TEST(BundledProblems, BracketLbfgsRecoversTruthFromInitialPoint) {
-  ExpectLbfgsRecoversTruth(load_problem(SourcePath("problems/bracket/synthetic.yaml")));
+  ExpectLbfgsRecoversTruth(LoadProblem(SourcePath("problems/bracket/synthetic.yaml")));
 }
 
 // The model-form study: its data file holds the synth run named in the problem file, with its
 // truth; the problem takes sensors and truth values from it.
 TEST(BundledProblems, PortalFrameHiddenMassDataIsWhatSynthMakes) {
-  const Problem study = load_problem(SourcePath("problems/portal-frame/hidden-mass.yaml"));
-  const Problem nominal = load_problem(SourcePath("problems/portal-frame/synthetic.yaml"));
+  const Problem study = LoadProblem(SourcePath("problems/portal-frame/hidden-mass.yaml"));
+  const Problem nominal = LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml"));
   ASSERT_TRUE(study.synthetic_truth);
   ASSERT_EQ(study.synthetic_truth->hidden_effects.size(), 1u);
   EXPECT_EQ(study.synthetic_truth->hidden_effects[0].value, 0.1);

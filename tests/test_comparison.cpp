@@ -9,6 +9,8 @@
 #include "test_util.hpp"
 
 namespace modalcal {
+
+using testing::LoadProblem;
 namespace {
 
 // A cantilevered bar with triaxial sensors on its top edge (9 nodes, the first at the clamped
@@ -21,7 +23,7 @@ options: {num_modes: 8}
 )";
 
 Problem Load(const std::string& sensors = "sensors:\n  - {node_set: top_edge, directions: [x, y, z]}\n") {
-  return load_problem(testing::WriteTempFile("bar.yaml", kBar + sensors));
+  return LoadProblem(testing::WriteTempFile("bar.yaml", kBar + sensors));
 }
 
 TEST(Comparison, ModelAgainstItsOwnModesIsPerfect) {

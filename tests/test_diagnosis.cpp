@@ -17,6 +17,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 // A base and a top block joined by a joint between two patches and by a soft pad, the base
@@ -65,7 +66,7 @@ options: {num_modes: 8}
 )";
 
 Problem LoadAssembly(const std::string& extra = "") {
-  return load_problem(WriteTempFile("assembly.yaml", std::string(kAssembly) + extra));
+  return LoadProblem(WriteTempFile("assembly.yaml", std::string(kAssembly) + extra));
 }
 
 /// The assembly measured on a truth with `changes`, 0.2 % frequency and 2 % shape noise.
@@ -580,7 +581,7 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   // right, only its mesh is coarse. The estimate on a mesh 1.5 times finer must say so, and the
   // loop, run on the frequencies corrected by it, must accept no physical effect.
   Problem problem = LoadAssembly();
-  const Problem fine_truth = load_problem(WriteTempFile("fine.yaml", kAssembly), LoadOptions{2.0});
+  const Problem fine_truth = LoadProblem(WriteTempFile("fine.yaml", kAssembly), LoadOptions{2.0});
   SynthesisOptions synthesis;
   synthesis.modes = problem.synthetic->modes;
   synthesis.noise = {0.002, 0.02, 41};
@@ -589,7 +590,7 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   problem.measured = data.modes;
   problem.synthetic.reset();
   problem.measurement_noise = data.noise;
-  Problem finer = load_problem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
+  Problem finer = LoadProblem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
   finer.measured = problem.measured;
   finer.synthetic.reset();
   finer.measurement_noise = problem.measurement_noise;
@@ -741,7 +742,7 @@ springs:
   const size_t at = yaml.find("sensors:");
   yaml.insert(at, parameter);
   yaml += spring;
-  Problem problem = load_problem(WriteTempFile("assembly-spring.yaml", yaml));
+  Problem problem = LoadProblem(WriteTempFile("assembly-spring.yaml", yaml));
   ASSERT_EQ(problem.parameters.size(), 4u);
   SynthesisOptions options;
   options.modes = problem.synthetic->modes;

@@ -20,10 +20,11 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::kEveryParameterKindModel;
 using testing::WriteTempFile;
 
-Problem EveryKind() { return load_problem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
+Problem EveryKind() { return LoadProblem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
 
 // The same model calibrated for the parameters its six modes identify well (E, nu, G, the joint,
 // the point mass): the others are left at their nominal values, and the synthetic modes are
@@ -37,7 +38,7 @@ Problem Identifiable() {
       drop = drop || (line.rfind(name, 0) == 0 && line.find("targets") != std::string::npos);
     if (!drop) kept += line + "\n";
   }
-  return load_problem(WriteTempFile("identifiable.yaml", kept));
+  return LoadProblem(WriteTempFile("identifiable.yaml", kept));
 }
 
 // The full-space point of the forward solution at p, with the adjoint multipliers, as the
@@ -222,7 +223,7 @@ TEST(FullSpace, EigenvaluesFirstAvoidsALocalMinimumOfTheShapeTerms) {
   // connections' kry 3.5x the truth on the machine this test was written on; the eigenvalues
   // alone have no minimum there. Whether the whole-objective path meets that minimum depends on
   // rounding, so only the staged path, which must reach the truth, is asserted.
-  const Problem problem = load_problem(testing::SourcePath("problems/portal-frame/synthetic.yaml"));
+  const Problem problem = LoadProblem(testing::SourcePath("problems/portal-frame/synthetic.yaml"));
   Vector start = problem.truth_values();
   start << 4700.111286974701, 779.0975542781846, 9234132818.724596, 0.35407586576213557;
   FullSpaceOptions eigenvalues_first;
@@ -248,7 +249,7 @@ TEST(FullSpace, EscapesFromAMinimumWhereTheMacPairsCross) {
   // mesh ended in (docs/studies.md): J = 0.40, measured modes 3 and 4 on model modes 4 and 3. Without the
   // eigenvalue stage the globalization stays there and Newton converges to it; the escape must
   // leave it for the truth.
-  const Problem problem = load_problem(testing::SourcePath("problems/lfu/synthetic.yaml"), LoadOptions{0.7});
+  const Problem problem = LoadProblem(testing::SourcePath("problems/lfu/synthetic.yaml"), LoadOptions{0.7});
   Vector start(5);
   start << 1472928.6082697778, 1942189.4986625202, 2251968.8746381933, 21698.744006539302, 38789.32476169043;
   Objective objective(problem);

@@ -22,6 +22,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::CliRun;
 using testing::ReadFile;
 using testing::RunCli;
@@ -48,7 +49,7 @@ std::string BarWithModulus(const std::string& parameter_options = "") {
 // --- the library refuses what the command-line program refuses ---
 
 TEST(HostileInputs, LibraryEntryPointsRefuseAProblemWithoutParameters) {
-  const Problem problem = load_problem(WriteTempFile("bare.yaml", BarWithoutParameters()));
+  const Problem problem = LoadProblem(WriteTempFile("bare.yaml", BarWithoutParameters()));
   Objective objective(problem);
   const Vector none(0);
   EXPECT_THROW(minimize_reduced(objective, none, ReducedOptions()), std::invalid_argument);
@@ -57,15 +58,15 @@ TEST(HostileInputs, LibraryEntryPointsRefuseAProblemWithoutParameters) {
   EXPECT_THROW(check_fullspace_derivatives(objective, none), std::invalid_argument);
   EXPECT_THROW(analyze_identifiability(objective, none, ParameterScaling(problem.parameters)), std::invalid_argument);
   // And a start of the wrong size where there are parameters.
-  const Problem with = load_problem(WriteTempFile("bar.yaml", BarWithModulus()));
+  const Problem with = LoadProblem(WriteTempFile("bar.yaml", BarWithModulus()));
   Objective with_objective(with);
   EXPECT_THROW(minimize_reduced(with_objective, Vector::Ones(2), ReducedOptions()), std::invalid_argument);
 }
 
 TEST(HostileInputs, LoadProblemRefusesARefinementThatIsNotPositiveAndFinite) {
   const std::string problem = WriteTempFile("bar.yaml", BarWithModulus());
-  EXPECT_THROW(load_problem(problem, LoadOptions{std::nan("")}), std::invalid_argument);
-  EXPECT_THROW(load_problem(problem, LoadOptions{-2}), std::invalid_argument);
+  EXPECT_THROW(LoadProblem(problem, LoadOptions{std::nan("")}), std::invalid_argument);
+  EXPECT_THROW(LoadProblem(problem, LoadOptions{-2}), std::invalid_argument);
 }
 
 // --- real test files ---

@@ -24,6 +24,8 @@ void pardiso(void** handle, const int* maxfct, const int* mnum, const int* mtype
 }
 
 namespace modalcal {
+
+using testing::LoadProblem;
 namespace {
 
 // The model with every parameter kind; `coarse`: on a coarser mesh with three measured modes, a
@@ -41,7 +43,7 @@ std::string EveryKindModel(bool coarse) {
 // A full-space point away from feasibility: every parameter kind, modes and eigenvalues of the
 // forward solution at 1.3 p0 perturbed by 1e-3, random multipliers.
 struct PerturbedPoint {
-  explicit PerturbedPoint(bool coarse) : PerturbedPoint(load_problem(testing::WriteTempFile("model.yaml", EveryKindModel(coarse)))) {}
+  explicit PerturbedPoint(bool coarse) : PerturbedPoint(LoadProblem(testing::WriteTempFile("model.yaml", EveryKindModel(coarse)))) {}
   Problem problem;
   Objective objective{problem, Regularized()};
   Vector p = problem.initial_values() * 1.3;

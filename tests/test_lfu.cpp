@@ -14,6 +14,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 
 std::vector<ModeDescription> ModesAt(const Problem& problem, const Vector& p) {
@@ -30,7 +31,7 @@ std::vector<ModeDescription> ModesAt(const Problem& problem, const Vector& p) {
 }
 
 TEST(Lfu, TruthModelReproducesMeasuredAxialModesWithinFivePercent) {
-  const Problem problem = load_problem(SourcePath("problems/lfu/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/lfu/synthetic.yaml"));
   ASSERT_TRUE(problem.has_truth());
   const std::vector<ModeDescription> modes = ModesAt(problem, problem.truth_values());
   const int first = find_family_mode(modes, "axial", 1), second = find_family_mode(modes, "axial", 2);
@@ -46,7 +47,7 @@ TEST(Lfu, TruthModelReproducesMeasuredAxialModesWithinFivePercent) {
 }
 
 TEST(Lfu, SyntheticStudyIsTheReportsSetUp) {
-  const Problem problem = load_problem(SourcePath("problems/lfu/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/lfu/synthetic.yaml"));
   ASSERT_EQ(problem.parameters.size(), 5u);
   EXPECT_EQ(problem.model.joints.size(), 3u);
   for (const Parameter& p : problem.parameters) {
@@ -61,7 +62,7 @@ TEST(Lfu, SyntheticStudyIsTheReportsSetUp) {
 }
 
 TEST(Lfu, ExperimentalCaseHasTwoAxialFrequenciesOnly) {
-  const Problem problem = load_problem(SourcePath("problems/lfu/experimental.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/lfu/experimental.yaml"));
   ASSERT_EQ(problem.measured.size(), 2u);
   EXPECT_EQ(problem.measured[0].frequency_hz, 1195.0);
   EXPECT_EQ(problem.measured[1].frequency_hz, 2085.0);
@@ -72,8 +73,8 @@ TEST(Lfu, ExperimentalCaseHasTwoAxialFrequenciesOnly) {
 }
 
 TEST(Lfu, RefinementChangesMeshButNotPhysics) {
-  const Problem coarse = load_problem(SourcePath("problems/lfu/lfu.yaml"));
-  const Problem fine = load_problem(SourcePath("problems/lfu/lfu.yaml"), LoadOptions{1.5});
+  const Problem coarse = LoadProblem(SourcePath("problems/lfu/lfu.yaml"));
+  const Problem fine = LoadProblem(SourcePath("problems/lfu/lfu.yaml"), LoadOptions{1.5});
   EXPECT_GT(fine.model.num_elements(), 3 * coarse.model.num_elements());
   const double f_coarse = find_family_mode(ModesAt(coarse, Vector()), "axial", 1);
   EXPECT_GT(f_coarse, 0);

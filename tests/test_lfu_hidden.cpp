@@ -19,6 +19,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 
 std::string ReadFile(const std::string& path) {
@@ -91,7 +92,7 @@ class LfuHidden : public ::testing::TestWithParam<HiddenCase> {};
 
 TEST_P(LfuHidden, DiagnosisFindsWhatWasHidden) {
   const std::string path = SourcePath(std::string("problems/lfu-hidden/") + GetParam().file);
-  const Problem problem = load_problem(path);
+  const Problem problem = LoadProblem(path);
   ASSERT_TRUE(problem.measurement_noise);
   ASSERT_TRUE(problem.synthetic_truth);
   // A test of the diagnosis, not of the optimizer: the calibration starts at the parameters'

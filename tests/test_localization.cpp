@@ -7,7 +7,7 @@
 #include <functional>
 
 #include "diagnostics/region_energy.hpp"
-#include "io/synthetic.hpp"
+#include "modalcal/synthesis.hpp"
 #include "modalcal/localization.hpp"
 #include "modalcal/problem_file.hpp"
 #include "test_util.hpp"
@@ -15,10 +15,11 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 
 Problem PortalFrame() {
-  return load_problem(SourcePath("problems/portal-frame/synthetic.yaml"));
+  return LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml"));
 }
 
 void ScaleBlockStiffness(Model* model, const std::string& block, double factor) {
@@ -48,7 +49,7 @@ void ChangeArticle(Problem* article, const std::string& property, double factor)
 Problem MeasuredOn(Problem problem, const std::function<void(Problem*)>& change) {
   Problem article = problem;
   change(&article);
-  detail::synthesize_measured(&article, *problem.synthetic);
+  synthesize_measured(&article);
   problem.measured = article.measured;
   return problem;
 }
@@ -225,7 +226,7 @@ sensors:
   for (int x = 0; x <= 6; ++x)
     for (const char* edge : {"0.5, 1", "0, 0"})
       text += "  - {at: [" + std::to_string(x) + ", " + edge + "], directions: [x, y, z]}\n";
-  const Problem problem = load_problem(testing::WriteTempFile("free.yaml", text));
+  const Problem problem = LoadProblem(testing::WriteTempFile("free.yaml", text));
   const Localization right = localize_model_error(problem, problem.truth_values());
   ASSERT_TRUE(right.ok) << right.message;
   EXPECT_EQ(right.modal.rigid_modes.cols(), 6);

@@ -26,6 +26,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 // ---------------------------------------------------------------------------- writers
@@ -377,7 +378,7 @@ fixed:
   - {node_set: left, dofs: [x, y, z]}
 blocks:
 )") + kSteel);
-  const Problem a = load_problem(from_file), b = load_problem(from_boxes);
+  const Problem a = LoadProblem(from_file), b = LoadProblem(from_boxes);
   ASSERT_EQ(a.model.num_nodes(), b.model.num_nodes());
   ASSERT_EQ(a.model.num_elements(), b.model.num_elements());
   ExpectSameFrequencies(Frequencies(a, 6), Frequencies(b, 6));
@@ -456,7 +457,7 @@ node_sets:
   left_end: {box: {min: [0, 0, 0], max: [0, 0.2, 0.1]}}
   far_side: {box: {min: [0.6, 0, 0], max: [0.6, 0.2, 0.1]}}
 )" + blocks);
-  const Problem a = load_problem(from_file), b = load_problem(from_boxes);
+  const Problem a = LoadProblem(from_file), b = LoadProblem(from_boxes);
   ASSERT_EQ(a.model.num_nodes(), b.model.num_nodes());
   EXPECT_EQ(a.model.find_node_set("far_side")->nodes, b.model.find_node_set("far_side")->nodes);
   ExpectSameFrequencies(Frequencies(a, 6), Frequencies(b, 6));
@@ -464,7 +465,7 @@ node_sets:
   // Node ids are the file's (1001, ...): a sensor and a reference node see them.
   const std::string with_sensor = WriteTempFile(
       "sensor.yaml", "mesh: {file: beam.exo}" + blocks + "reference_nodes:\n  hub: [0.7, 0.1, 0.05]\nsensors:\n  - {node: 1005, directions: [z]}\n");
-  const Problem c = load_problem(with_sensor);
+  const Problem c = LoadProblem(with_sensor);
   ASSERT_EQ(c.sensors.size(), 1u);
   EXPECT_EQ(c.model.coordinates[c.sensors[0].node], written.coordinates[4]);
   EXPECT_EQ(c.model.node_ids.back(), 1001 + static_cast<long>(written.coordinates.size()));  // the reference node
@@ -645,7 +646,7 @@ void ExpectProblemError(const std::string& text, const std::vector<std::string>&
   const std::string marked = text.substr(0, text.find("# <-"));
   const int line = 1 + static_cast<int>(std::count(marked.begin(), marked.end(), '\n'));
   try {
-    load_problem(path, LoadOptions{refinement});
+    LoadProblem(path, LoadOptions{refinement});
     ADD_FAILURE() << "expected a ProblemError";
   } catch (const ProblemError& e) {
     EXPECT_EQ(e.file(), path);
@@ -668,7 +669,7 @@ TEST(MeshFileProblemErrors, FileBlockWithoutMaterial) {
   WriteExodus(WriteTempFile("two.exo", ""), two);
   const std::string path = WriteTempFile("problem.yaml", "mesh:\n  file: two.exo\nblocks:\n  solid: {E: 1, nu: 0.3, density: 1}\n");
   try {
-    load_problem(path);
+    LoadProblem(path);
     ADD_FAILURE() << "expected a ProblemError";
   } catch (const ProblemError& e) {
     EXPECT_EQ(e.line(), 2) << e.what();
@@ -694,7 +695,7 @@ TEST(MeshFileProblemErrors, FileProblemsNameTheProblemLineAndTheMeshFile) {
 // `scale` converts the file's lengths (a CAD mesh in mm into a model in m).
 TEST(MeshFileProblem, ScaleMultipliesCoordinates) {
   WriteOneTet();
-  const Problem p = load_problem(WriteTempFile(
+  const Problem p = LoadProblem(WriteTempFile(
       "problem.yaml", "mesh: {file: tet.exo, scale: 1.0e-3}\nblocks:\n  solid: {E: 1, nu: 0.3, density: 1}\n"));
   EXPECT_EQ(p.model.coordinates[3], Vec3(0, 0, 1e-3));
   EXPECT_EQ(p.model.find_node_set("base")->nodes, (std::vector<int>{0, 1, 2}));

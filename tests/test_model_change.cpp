@@ -14,6 +14,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 // A cantilevered bar of one block (9 x 2 x 3 = 54 mesh nodes) with a node set at the tip, coupled
@@ -32,7 +33,7 @@ point_masses:
   weight: {node: arm, mass: 0.1}
 )";
 
-Model LoadBar() { return load_problem(WriteTempFile("bar.yaml", kBarWithTip)).model; }
+Model LoadBar() { return LoadProblem(WriteTempFile("bar.yaml", kBarWithTip)).model; }
 
 Vector Frequencies(const Model& model, int n) {
   ParametricSystem system(model, {});

@@ -16,11 +16,12 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 using testing::kEveryParameterKindModel;
 
-Problem LoadModel() { return load_problem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
+Problem LoadModel() { return LoadProblem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
 
 TEST(Objective, VanishesAtTheTruthAndIsPositiveElsewhere) {
   const Problem problem = LoadModel();

@@ -15,6 +15,7 @@
 
 #include "modalcal/problem.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/synthesis.hpp"
 
 namespace modalcal {
 namespace {
@@ -243,7 +244,8 @@ options: {max_rigid_modes: 3}
   EXPECT_EQ(p.expected_rigid_modes(), 3);
 }
 
-TEST(LoadProblem, SyntheticMeasuredModesAreSynthesized) {
+// Loading reads and checks the section; synthesize_measured() solves the truth model.
+TEST(LoadProblem, SyntheticMeasuredModesAreSynthesizedAfterLoading) {
   const std::string text = kCube + R"(
 node_sets:
   bottom: {box: {min: [0, 0, 0], max: [1, 1, 0]}}
@@ -257,33 +259,40 @@ measured:
   synthetic: {modes: [1, 2], shapes: true}
 options: {num_modes: 4}
 )";
-  const Problem p = load_problem(WriteProblem(text));
+  Problem p = load_problem(WriteProblem(text));
   ASSERT_TRUE(p.synthetic);
   EXPECT_EQ(p.synthetic->modes, (std::vector<int>{1, 2}));
   EXPECT_TRUE(p.synthetic->shapes);
   EXPECT_EQ(p.synthetic->source_line, LineContaining(text, "synthetic:"));
+  EXPECT_TRUE(p.measured.empty());
+  EXPECT_FALSE(p.synthetic_truth);
+  synthesize_measured(&p);
   EXPECT_EQ(p.measured.size(), 2u);
+  EXPECT_TRUE(p.synthetic_truth);
   EXPECT_TRUE(p.has_truth());
   EXPECT_EQ(p.truth_values()[0], 2.0e11);
 }
 
-// LoadOptions::synthesize = false (the problem fuzz target's cheap load): the section is read and
-// checked, its modes are not computed.
-TEST(LoadProblem, SyntheticSectionIsCheckedButNotSolvedWithoutSynthesize) {
+// A synthetic section's mistakes that need the truth model are reported by
+// synthesize_measured(), at the section's line.
+TEST(LoadProblem, SyntheticSectionWithoutTruthValuesFailsWhenSynthesized) {
   const std::string text = kCube + R"(
 parameters:
-  E: {targets: [steel.E], initial: 1.0e11, lower: 1.0e10, upper: 1.0e12, truth: 2.0e11}
+  E: {targets: [steel.E], initial: 1.0e11, lower: 1.0e10, upper: 1.0e12}
 sensors:
   - {at: [1, 1, 1], directions: [x, y, z]}
 measured:
   synthetic: {modes: [1, 2], shapes: true}
 )";
-  LoadOptions options;
-  options.synthesize = false;
-  const Problem p = load_problem(WriteProblem(text), options);
+  Problem p = load_problem(WriteProblem(text));
   ASSERT_TRUE(p.synthetic);
-  EXPECT_EQ(p.synthetic->modes, (std::vector<int>{1, 2}));
-  EXPECT_TRUE(p.measured.empty());
+  try {
+    synthesize_measured(&p);
+    FAIL() << "expected a ProblemError";
+  } catch (const ProblemError& e) {
+    EXPECT_EQ(e.line(), LineContaining(text, "synthetic:"));
+    EXPECT_NE(std::string(e.what()).find("needs a 'truth' value"), std::string::npos) << e.what();
+  }
 }
 
 // LoadOptions::memory_bytes stands for the machine's memory in the mesh-size check.

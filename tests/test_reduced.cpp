@@ -13,6 +13,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 
 // Two independent oscillators (point masses on springs to ground, moving along x only):
@@ -165,7 +166,7 @@ TEST(Reduced, OptionsAreValidatedNamingTheField) {
 }
 
 TEST(Lfu, SyntheticStudyLbfgsRecoversAllParametersWithin25Iterations) {
-  const Problem problem = load_problem(SourcePath("problems/lfu/synthetic.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/lfu/synthetic.yaml"));
   Objective objective(problem);
   ReducedOptions options;  // L-BFGS, bounds on, log scaling from the problem file
   options.max_iterations = 25;
@@ -177,7 +178,7 @@ TEST(Lfu, SyntheticStudyLbfgsRecoversAllParametersWithin25Iterations) {
 }
 
 TEST(Lfu, ExperimentalCaseMatchesTheAxialModesAndFlagsAPoorlyIdentifiedParameter) {
-  const Problem problem = load_problem(SourcePath("problems/lfu/experimental.yaml"));
+  const Problem problem = LoadProblem(SourcePath("problems/lfu/experimental.yaml"));
   Objective objective(problem);
   ReducedOptions options;
   const ReducedSummary s = minimize_reduced(objective, problem.initial_values() * 10, options);

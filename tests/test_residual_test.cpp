@@ -10,6 +10,8 @@
 #include "test_util.hpp"
 
 namespace modalcal {
+
+using testing::LoadProblem;
 namespace {
 
 TEST(ResidualTest, ChiSquareTailMatchesClosedForms) {
@@ -35,7 +37,7 @@ void AddNoise(Problem* problem, const MeasurementNoise& noise, detail::StandardN
 TEST(ResidualTest, PureNoiseIsFlaggedAtAboutTheSignificanceLevel) {
   // The portal frame: its twelve triaxial sensors tell its six modes apart under noise (the
   // every-parameter-kind test model's sensors do not, and a mispaired mode is no test of noise).
-  const Problem clean = load_problem(testing::SourcePath("problems/portal-frame/synthetic.yaml"));
+  const Problem clean = LoadProblem(testing::SourcePath("problems/portal-frame/synthetic.yaml"));
   MeasurementNoise noise;
   noise.frequency = 0.002;
   noise.shape = 0.02;
@@ -64,7 +66,7 @@ TEST(ResidualTest, PureNoiseIsFlaggedAtAboutTheSignificanceLevel) {
 }
 
 TEST(ResidualTest, AWrongParameterIsAModelFormErrorAndNamesItsModes) {
-  Problem problem = load_problem(testing::WriteTempFile("model.yaml", testing::kEveryParameterKindModel));
+  Problem problem = LoadProblem(testing::WriteTempFile("model.yaml", testing::kEveryParameterKindModel));
   MeasurementNoise noise;
   noise.frequency = 0.002;
   noise.shape = 0.02;
@@ -92,7 +94,7 @@ TEST(ResidualTest, AWrongParameterIsAModelFormErrorAndNamesItsModes) {
 }
 
 TEST(ResidualTest, RejectsMissingNoiseAndBadOptions) {
-  const Problem problem = load_problem(testing::WriteTempFile("model.yaml", testing::kEveryParameterKindModel));
+  const Problem problem = LoadProblem(testing::WriteTempFile("model.yaml", testing::kEveryParameterKindModel));
   Objective objective(problem);
   const Evaluation e = objective.evaluate(problem.truth_values());
   EXPECT_THROW(test_residual(objective, e, {0, 0.02}, 0), std::invalid_argument);

@@ -19,6 +19,7 @@ namespace modalcal {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 // A cantilevered bar (non-square section, so no repeated eigenvalues) with triaxial sensors on
@@ -37,7 +38,7 @@ std::string Nominal(const std::string& truth = "truth: 1200, ") {
 }
 
 Problem LoadNominal() {
-  return load_problem(WriteTempFile("nominal.yaml", Nominal() + "measured:\n  synthetic: {modes: [1, 2, 3, 4, 5, 6]}\n"));
+  return LoadProblem(WriteTempFile("nominal.yaml", Nominal() + "measured:\n  synthetic: {modes: [1, 2, 3, 4, 5, 6]}\n"));
 }
 
 SynthesisOptions Options(double frequency_noise, double shape_noise, std::uint64_t seed) {
@@ -156,7 +157,7 @@ rigid_couplings:
 point_masses:
   payload: {node: tip_ref, mass: 0.2, inertia: [0.01, 0.01, 0.01]}
 )");
-  const Problem truth_file = load_problem(truth_path);
+  const Problem truth_file = LoadProblem(truth_path);
   const TruthModel truth = make_truth(nominal, &truth_file, {});
   std::vector<std::string> names;
   for (const ModelEffect& e : truth.record.hidden_effects) names.push_back(e.name);
@@ -193,7 +194,7 @@ TEST(MeasuredDataFile, RoundTripsIntoTheNominalProblem) {
   const std::string data_path = WriteTempFile("data.yaml", "");
   write_measured_data(data_path, data, {});
   // The nominal problem without a truth value: the data's truth completes it.
-  const Problem p = load_problem(WriteTempFile("study.yaml", Nominal("") + "measured: {file: data.yaml}\n"));
+  const Problem p = LoadProblem(WriteTempFile("study.yaml", Nominal("") + "measured: {file: data.yaml}\n"));
   EXPECT_EQ(p.measured_file, data_path);
   ASSERT_EQ(p.measured.size(), data.modes.size());
   for (size_t k = 0; k < data.modes.size(); ++k) {
@@ -217,7 +218,7 @@ TEST(MeasuredDataFile, RoundTripsIntoTheNominalProblem) {
   EXPECT_EQ(p.measurement_noise->seed, 9u);
 
   // Without its own sensors, a problem takes the data's (same nodes, same order).
-  const Problem adopted = load_problem(WriteTempFile(
+  const Problem adopted = LoadProblem(WriteTempFile(
       "adopt.yaml", kBase + "measured: {file: data.yaml}\n"));
   ASSERT_EQ(adopted.sensors.size(), nominal.sensors.size());
   for (size_t s = 0; s < nominal.sensors.size(); ++s) {
@@ -233,7 +234,7 @@ TEST(MeasuredDataFile, RoundTripsIntoTheNominalProblem) {
 void ExpectLoadError(const std::string& problem, const std::string& file, int line,
                      const std::vector<std::string>& fragments) {
   try {
-    load_problem(problem);
+    LoadProblem(problem);
     ADD_FAILURE() << "expected a ProblemError";
   } catch (const ProblemError& e) {
     EXPECT_EQ(fs::path(e.file()).filename(), fs::path(file).filename()) << e.what();
@@ -265,7 +266,7 @@ void Edit(const std::string& path, const std::string& from, const std::string& t
 TEST(MeasuredDataFile, ErrorsNameTheDataFileAndLine) {
   const std::string study = WriteStudy(Nominal() + "measured: {file: data.yaml}\n", {});
   const std::string data = fs::path(study).parent_path() / "data.yaml";
-  ASSERT_NO_THROW(load_problem(study));
+  ASSERT_NO_THROW(LoadProblem(study));
 
   // A shape one value short (the first sensor is at the clamped root: 0).
   Edit(data, "shape: [0, ", "shape: [");

@@ -21,6 +21,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::SourcePath;
 using testing::WriteTempFile;
 
@@ -702,7 +703,7 @@ TEST(UffProblem, MeasuredModesComeFromAUniversalFile) {
   const std::string text = std::string("units: m, N, s\n") + kBar + R"(measured:
   test_data: {file: bar_test.uff, modes: [2, 1], map: coordinates, tolerance: 1.0e-6, directions: [y, z]}
 )";
-  const Problem p = load_problem(WriteTempFile("bar.yaml", text));
+  const Problem p = LoadProblem(WriteTempFile("bar.yaml", text));
   ASSERT_EQ(p.sensors.size(), 6u);  // 3 matched nodes × (y, z)
   const Vec3 at[] = {Vec3(3, 0, 0), Vec3(3, 1, 1), Vec3(1, 0, 1)};
   for (int k = 0; k < 3; ++k)
@@ -729,7 +730,7 @@ TEST(UffProblem, AnExplicitScaleAndMappingById) {
   const std::string text = std::string(kBar) + R"(measured:
   test_data: {file: bar_test.uff, scale_length: 2, directions: [x]}
 )";
-  const Problem p = load_problem(WriteTempFile("bar.yaml", text));
+  const Problem p = LoadProblem(WriteTempFile("bar.yaml", text));
   ASSERT_EQ(p.sensors.size(), 4u);
   for (size_t k = 0; k < 4; ++k) EXPECT_EQ(p.model.node_ids[p.sensors[k].node], 11 + static_cast<long>(k));
   ASSERT_EQ(p.measured.size(), 2u);
@@ -738,7 +739,7 @@ TEST(UffProblem, AnExplicitScaleAndMappingById) {
 
 TEST(UffProblem, SyntheticModesWrittenAsCsvComeBackThroughAProblemFile) {
   const std::string model = testing::kEveryParameterKindModel;
-  const Problem truth = load_problem(WriteTempFile("every.yaml", model));
+  const Problem truth = LoadProblem(WriteTempFile("every.yaml", model));
   TestData csv;
   for (size_t k = 0; k < truth.measured.size(); ++k) {
     TestMode m;
@@ -753,7 +754,7 @@ TEST(UffProblem, SyntheticModesWrittenAsCsvComeBackThroughAProblemFile) {
   // The same model, its sensors and measured modes replaced by the CSV.
   const size_t from = model.find("sensors:"), to = model.find("options:");
   const std::string text = model.substr(0, from) + "measured:\n  test_data: {file: synthetic.csv}\n" + model.substr(to);
-  const Problem p = load_problem(WriteTempFile("from_csv.yaml", text));
+  const Problem p = LoadProblem(WriteTempFile("from_csv.yaml", text));
   ASSERT_EQ(p.measured.size(), truth.measured.size());
   ASSERT_EQ(p.sensors.size(), truth.sensors.size());
   for (size_t k = 0; k < p.measured.size(); ++k) {
@@ -785,7 +786,7 @@ measured:
   test_data: {file: )" + Sample("nodes2411_results2414.uff") +
                            R"(, modes: [1, 2, 3], map: coordinates, directions: [z]}
 )";
-  const Problem p = load_problem(WriteTempFile("plate.yaml", text));
+  const Problem p = LoadProblem(WriteTempFile("plate.yaml", text));
   ASSERT_EQ(p.sensors.size(), 441u);
   for (const Sensor& s : p.sensors) EXPECT_EQ(p.model.coordinates[s.node].z(), 0.0) << s.label;
   ASSERT_EQ(p.measured.size(), 3u);
@@ -800,7 +801,7 @@ TEST(UffProblem, ErrorsNameTheRightFileAndLine) {
   auto expect_error = [](const std::string& path, const std::string& file, int line,
                          const std::vector<std::string>& fragments) {
     try {
-      load_problem(path);
+      LoadProblem(path);
       ADD_FAILURE() << "expected a ProblemError";
     } catch (const ProblemError& e) {
       EXPECT_EQ(e.file(), file) << e.what();

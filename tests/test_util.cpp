@@ -1,5 +1,7 @@
 #include "test_util.hpp"
 
+#include "modalcal/synthesis.hpp"
+
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -13,6 +15,12 @@
 #include <vector>
 
 namespace modalcal::testing {
+
+Problem LoadProblem(const std::string& path, const LoadOptions& options) {
+  Problem problem = load_problem(path, options);
+  synthesize_measured(&problem);
+  return problem;
+}
 
 // A two-block cantilever with a joint to a
 // reference node carrying a point mass, springs at the root, sensors on the top edge, and six

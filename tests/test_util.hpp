@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "modalcal/model.hpp"
+#include "modalcal/problem_file.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal::testing {
@@ -14,6 +15,10 @@ namespace modalcal::testing {
 /// |a - b| <= tol * max(|a|, |b|, floor); reports both values on failure.
 ::testing::AssertionResult IsClose(double a, double b, double rel_tol, double floor = 0.0);
 #define EXPECT_CLOSE(a, b, tol) EXPECT_TRUE(::modalcal::testing::IsClose((a), (b), (tol)))
+
+/// load_problem(), then synthesize_measured(): the problem file with its measured modes, as the
+/// tool loads it.
+Problem LoadProblem(const std::string& path, const LoadOptions& options = {});
 
 /// Compares two texts that differ only in the last digits of their numbers: the parts between
 /// numbers must be equal, and each pair of numbers must satisfy

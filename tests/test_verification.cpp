@@ -30,6 +30,7 @@
 namespace modalcal {
 namespace {
 
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 constexpr double kPi = 3.14159265358979323846;
@@ -46,7 +47,7 @@ struct Solution {
 
 Solution Solve(const std::string& file, const std::string& yaml) {
   Solution s;
-  s.problem = load_problem(WriteTempFile(file, yaml));
+  s.problem = LoadProblem(WriteTempFile(file, yaml));
   s.system = std::make_unique<ParametricSystem>(s.problem.model, s.problem.parameter_targets());
   s.p = s.problem.initial_values();
   s.system->assemble(s.p, &s.K, &s.M);
@@ -245,7 +246,7 @@ TEST(EffectiveMass, FixedFreeRodHigherModeFractionsMatchClosedForm) {
   std::string yaml = BarYaml("hex8", 40, 5);
   const std::string root_fix = "  - {node_set: root, dofs: [x]}\n";
   yaml.erase(yaml.find(root_fix), root_fix.size());
-  const Problem full_problem = load_problem(WriteTempFile("bar_full.yaml", yaml));
+  const Problem full_problem = LoadProblem(WriteTempFile("bar_full.yaml", yaml));
   ParametricSystem full(full_problem.model, {});
   SparseMatrix K_full, M_full;
   full.assemble(Vector(), &K_full, &M_full);

@@ -17,6 +17,7 @@ namespace modalcal {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::LoadProblem;
 using testing::WriteTempFile;
 
 const char* kBar = R"(
@@ -59,7 +60,7 @@ struct Bar {
   std::unique_ptr<ParametricSystem> system;
   ModalResult modal;
   Vector p;
-  explicit Bar(const std::string& path) : problem(load_problem(path)) {
+  explicit Bar(const std::string& path) : problem(LoadProblem(path)) {
     system = std::make_unique<ParametricSystem>(problem.model, problem.parameter_targets());
     p = problem.initial_values();
     SparseMatrix K, M;

@@ -20,13 +20,14 @@
 #include <utility>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/model.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
 
 /// Numbering of the model's DOFs and the elimination of fixed and rigidly coupled DOFs.
-class DofMap {
+class MODALCAL_EXPORT DofMap {
  public:
   explicit DofMap(const Model& model);
 
@@ -60,7 +61,7 @@ class DofMap {
 
 /// A coefficient \f$c(\theta)\f$ of one term: a product of factors, each a property value or the
 /// bulk/shear modulus from (E, ν). Exposed for testing.
-struct Coefficient {
+struct MODALCAL_EXPORT Coefficient {
   enum class Kind { Property, BulkFromYoung, ShearFromYoung };
   struct Factor {
     Kind kind = Kind::Property;
@@ -74,7 +75,7 @@ struct Coefficient {
   void derivatives(const Vector& theta, Vector* gradient, Matrix* hessian) const;
 };
 
-class ParametricSystem {
+class MODALCAL_EXPORT ParametricSystem {
  public:
   /// `parameter_targets[j]` lists the properties parameter j sets. A property may be the target
   /// of at most one parameter.

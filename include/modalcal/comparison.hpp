@@ -34,11 +34,12 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
 
-struct ComparisonOptions {
+struct MODALCAL_EXPORT ComparisonOptions {
   /// A pair whose MAC is below this is listed as unpaired: no model mode resembles the measured
   /// shape (0.5: the shapes are closer to orthogonal than to parallel). Range: [0, 1].
   double unpaired_mac = 0.5;
@@ -50,7 +51,7 @@ struct ComparisonOptions {
 };
 
 /// One measured mode and its paired model mode.
-struct ComparedPair {
+struct MODALCAL_EXPORT ComparedPair {
   int measured = 0;               ///< 0-based index into Problem::measured
   int model = 0;                  ///< 0-based elastic model mode
   double measured_hz = 0, model_hz = 0;
@@ -59,7 +60,7 @@ struct ComparedPair {
   double cross_orthogonality = NAN;  ///< C_ii, NaN without a test mass or shape
 };
 
-struct ModalComparison {
+struct MODALCAL_EXPORT ModalComparison {
   std::vector<ComparedPair> pairs;           ///< in the order of Problem::measured
   std::vector<int> unpaired_measured;        ///< indices into `pairs` with MAC < unpaired_mac
   std::vector<int> unpaired_model;           ///< 0-based model modes no measured mode pairs with
@@ -80,6 +81,7 @@ struct ModalComparison {
 /// Solves the model at `p` and correlates it with the problem's measured modes.
 /// \throws std::invalid_argument for invalid options or a problem without measured modes,
 ///   std::runtime_error (with the cause) if the model solve or the pairing fails.
-ModalComparison compare_modes(const Problem& problem, const Vector& p, const ComparisonOptions& options = {});
+MODALCAL_EXPORT ModalComparison compare_modes(const Problem& problem, const Vector& p,
+                                              const ComparisonOptions& options = {});
 
 }  // namespace modalcal

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "modalcal/effects.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/localization.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
@@ -37,7 +38,7 @@
 namespace modalcal {
 
 /// A calibrated state: parameter values and how the model then meets the measured modes.
-struct FitState {
+struct MODALCAL_EXPORT FitState {
   std::vector<std::string> parameter_names;  ///< calibration parameters, then added effects
   Vector parameters;
   std::vector<PairedMode> pairs;  ///< measured and model modes, paired
@@ -49,15 +50,16 @@ struct FitState {
 
 /// Evaluates `problem` at `p` and tests its residual (with `p.size()` fitted parameters).
 /// \throws std::runtime_error if the evaluation fails; std::invalid_argument for a wrong size.
-FitState evaluate_fit(const Problem& problem, const Vector& p, const ResidualTestOptions& options = {});
+MODALCAL_EXPORT FitState evaluate_fit(const Problem& problem, const Vector& p, const ResidualTestOptions& options = {});
 
 /// Side by side, per measured mode: measured Hz, model Hz and error % before and after, MAC before
 /// and after; then the parameters before and after (added effects with their words) and the
 /// residual test's verdict before and after.
-std::string format_before_after(const Problem& after_problem, const FitState& before, const FitState& after,
-                                const std::string& before_title = "before", const std::string& after_title = "after");
+MODALCAL_EXPORT std::string format_before_after(const Problem& after_problem, const FitState& before,
+                                                const FitState& after, const std::string& before_title = "before",
+                                                const std::string& after_title = "after");
 
-struct DiagnosisOptions {
+struct MODALCAL_EXPORT DiagnosisOptions {
   /// Effects in the model from the start, beside the problem's enabled ones (`effects:` with
   /// `enable: true`); their values are calibrated with the parameters before the first screen.
   std::vector<EffectCandidate> added;
@@ -101,7 +103,7 @@ struct DiagnosisOptions {
 };
 
 /// One effect accepted by a forward step of the loop.
-struct DiagnosisStep {
+struct MODALCAL_EXPORT DiagnosisStep {
   int step = 0;        ///< 1-based
   RankedEffect effect;  ///< its refit in that step: value, standard error, X^2 after, p-value, dBIC
   double chi2_before = 0;       ///< X^2 (or 2J without noise) before the step
@@ -128,7 +130,7 @@ struct DiagnosisStep {
 /// mesh misses (r²/(r² − 1) − 1 times the change, for a frequency error of order h², r the
 /// ratio of element sizes from the DOF counts as (n_fine/n)^(1/3)) allowed as model error in
 /// each frequency (MeasuredMode::model_error).
-struct DiscretizationEstimate {
+struct MODALCAL_EXPORT DiscretizationEstimate {
   struct Mode {
     int measured = 0;  ///< 0-based
     std::string label;
@@ -150,13 +152,13 @@ struct DiscretizationEstimate {
 };
 
 /// An accepted effect the backward pass removed.
-struct DroppedEffect {
+struct MODALCAL_EXPORT DroppedEffect {
   std::string name;
   double chi2_increase = 0;   ///< X^2 refitted without it, minus X^2 with it
   double critical_value = 0;  ///< chi-square(1) at the significance level
 };
 
-struct Diagnosis {
+struct MODALCAL_EXPORT Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
   FitState before;             ///< at its result
@@ -196,25 +198,25 @@ struct Diagnosis {
 /// Runs the loop on `problem` from the parameter values `start`.
 /// \throws std::invalid_argument for invalid options or a start of the wrong size;
 ///   std::runtime_error if the start cannot be evaluated.
-Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options = {});
+MODALCAL_EXPORT Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options = {});
 
 /// The report: calibration, residual test, localization (first rows), ranking, recommendation
 /// and the before/after table of the recommended effect.
-std::string format_diagnosis(const Problem& problem, const Diagnosis& diagnosis);
+MODALCAL_EXPORT std::string format_diagnosis(const Problem& problem, const Diagnosis& diagnosis);
 
 /// The discretization estimate as text: each mode's estimated error and the chi-square it explains.
-std::string format_discretization(const DiscretizationEstimate& estimate);
+MODALCAL_EXPORT std::string format_discretization(const DiscretizationEstimate& estimate);
 
 /// The stepwise loop as text: the misfit at the start, after each accepted effect (its value,
 /// standard error, place and test), the effects the backward pass dropped, and at the end.
-std::string format_steps(const Diagnosis& diagnosis);
+MODALCAL_EXPORT std::string format_steps(const Diagnosis& diagnosis);
 
 /// `problem` (unweighted) with the diagnosis's kept effects as parameters after its own, every
 /// parameter starting at the diagnosis's final value: what `calibrate` continues from.
 /// \throws std::invalid_argument if `diagnosis` was not made from `problem`.
-Problem problem_with_diagnosed_effects(const Problem& problem, const Diagnosis& diagnosis);
+MODALCAL_EXPORT Problem problem_with_diagnosed_effects(const Problem& problem, const Diagnosis& diagnosis);
 
 /// 1-based rank of the effect called `name` in `ranking`, 0 if it is not ranked.
-int rank_of(const EffectRanking& ranking, const std::string& name);
+MODALCAL_EXPORT int rank_of(const EffectRanking& ranking, const std::string& name);
 
 }  // namespace modalcal

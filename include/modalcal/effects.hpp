@@ -80,6 +80,7 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
@@ -89,7 +90,7 @@
 namespace modalcal {
 
 /// A parameterized model change: the unit the ranking talks in.
-struct EffectCandidate {
+struct MODALCAL_EXPORT EffectCandidate {
   /// How the screen linearizes the effect and the refit scales it.
   enum class Variable {
     Log,         ///< log10 of a positive value with a nonzero nominal (scale factors, present stiffness)
@@ -115,7 +116,7 @@ struct EffectCandidate {
 };
 
 /// Which automatic candidates to generate (all by default).
-struct CandidateOptions {
+struct MODALCAL_EXPORT CandidateOptions {
   bool blocks = true;         ///< stiffness and mass scale per block, Poisson's ratio of an (E, nu) block
   bool joints = true;         ///< six components per joint and spring, mass per point mass
   bool node_sets = true;      ///< springs to ground and added masses per free node set
@@ -148,17 +149,20 @@ struct CandidateOptions {
 /// without those whose property a calibration parameter sets; unique names, declared ones
 /// replacing automatic ones of the same name.
 /// \throws std::invalid_argument for invalid options.
-std::vector<EffectCandidate> generate_candidates(const Problem& problem, const CandidateOptions& options = {});
+MODALCAL_EXPORT std::vector<EffectCandidate> generate_candidates(const Problem& problem,
+                                                                 const CandidateOptions& options = {});
 
 /// One candidate from a change text without its value ("joint2.kry", "point_mass@top:mass",
 /// "support@post_bottom:kx") or with a start value ("joint2.kry=1e5"), with the defaults of the
 /// table above; or the candidate of that name among generate_candidates() (e.g.
 /// "added_mass_node123.mass"). Marked declared.
 /// \throws std::invalid_argument naming the text and why it does not apply to the model.
-EffectCandidate make_candidate(const Problem& problem, const std::string& text, const CandidateOptions& options = {});
+MODALCAL_EXPORT EffectCandidate make_candidate(const Problem& problem, const std::string& text,
+                                               const CandidateOptions& options = {});
 
 /// The declared effects of `problem` that are enabled (`enable: true`), as candidates.
-std::vector<EffectCandidate> enabled_candidates(const Problem& problem, const CandidateOptions& options = {});
+MODALCAL_EXPORT std::vector<EffectCandidate> enabled_candidates(const Problem& problem,
+                                                                const CandidateOptions& options = {});
 
 /// `problem` with each candidate applied to its model at `values[k]` and added as a parameter
 /// after the problem's own (name = candidate name, initial value `values[k]`, bounds of the
@@ -166,16 +170,16 @@ std::vector<EffectCandidate> enabled_candidates(const Problem& problem, const Ca
 /// thousandth of `values[k]`, its lower bound), linear scaling with the candidate's reference
 /// where it is 0 (the screen's point) or the bounds include negative values.
 /// \throws std::invalid_argument if a change cannot be applied (naming it) or the sizes differ.
-Problem problem_with_effects(const Problem& problem, const std::vector<EffectCandidate>& candidates,
-                             const std::vector<double>& values);
+MODALCAL_EXPORT Problem problem_with_effects(const Problem& problem, const std::vector<EffectCandidate>& candidates,
+                                             const std::vector<double>& values);
 
 /// Where `candidate` acts on `model`: the centroid of the nodes of the joint, springs or point
 /// mass it sets or adds (a joint's two nodes, a support's or node set's nodes); none for a
 /// block's property, which acts on the whole block.
 /// \throws std::invalid_argument if its change does not apply to `model`.
-std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate);
+MODALCAL_EXPORT std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate);
 
-struct RankingOptions {
+struct MODALCAL_EXPORT RankingOptions {
   /// How many of the best-predicted candidates are refitted. Range: >= 0.
   int refits = 3;
   /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
@@ -202,7 +206,7 @@ struct RankingOptions {
   static ObjectiveOptions default_objective_options();
 };
 
-struct RankedEffect {
+struct MODALCAL_EXPORT RankedEffect {
   EffectCandidate candidate;
   double predicted_reduction = 0;  ///< first-order \f$\Delta X^2_{pred}\f$ (bounded)
   double predicted_value = 0;      ///< the value at the first-order optimum
@@ -235,7 +239,7 @@ struct RankedEffect {
   std::string summary() const;
 };
 
-struct EffectRanking {
+struct MODALCAL_EXPORT EffectRanking {
   /// Refitted candidates, the significant ones first, each group by score() (S, "Which effect"
   /// above); then the others by predicted reduction.
   std::vector<RankedEffect> effects;
@@ -258,7 +262,7 @@ struct EffectRanking {
 /// missing effect shows as a peak. The scores combine a place's candidates as
 /// \f$-\log_{10} p\f$ of the best one, p Šidák-corrected for their number
 /// (\f$p = 1 - (1 - p_1)^k\f$), so they too are flat in distribution under noise.
-struct ScreenMap {
+struct MODALCAL_EXPORT ScreenMap {
   Vector node_mass;     ///< per model node: an added point mass (NaN where none was screened)
   Matrix node_spring;   ///< per node, 3 columns: a spring to ground along x, y, z (NaN likewise)
   /// Per node: \f$-\log_{10} p\f$ of its best candidate (0 where none): the additions at the
@@ -283,21 +287,22 @@ struct ScreenMap {
 
 /// The map of the screen `ranking` made on `model` (the model it screened; see ScreenMap).
 /// \throws std::invalid_argument if a region candidate does not apply to `model`.
-ScreenMap screen_map(const Model& model, const EffectRanking& ranking);
+MODALCAL_EXPORT ScreenMap screen_map(const Model& model, const EffectRanking& ranking);
 
 /// The map's first `rows` places as a table: score, place, location.
-std::string format_screen_map(const ScreenMap& map, int rows = 5);
+MODALCAL_EXPORT std::string format_screen_map(const ScreenMap& map, int rows = 5);
 
 /// Screens `candidates` at the calibrated parameters `calibrated` of `problem` (weighted by its
 /// measurement noise when it has one, see noise_weighted) and refits the best ones.
 /// `problem` must be the weighted problem the calibration minimized.
 /// \throws std::invalid_argument for invalid options or sizes; std::runtime_error if the
 ///   calibrated point cannot be evaluated.
-EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
-                           const std::vector<EffectCandidate>& candidates, const RankingOptions& options = {});
+MODALCAL_EXPORT EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
+                                           const std::vector<EffectCandidate>& candidates,
+                                           const RankingOptions& options = {});
 
 /// The ranking as a table: rank, name, predicted and achieved reduction, value, ΔBIC,
 /// significant; its first `max_rows` rows, then the description of each refitted one.
-std::string format_effect_ranking(const EffectRanking& ranking, int max_rows = 10);
+MODALCAL_EXPORT std::string format_effect_ranking(const EffectRanking& ranking, int max_rows = 10);
 
 }  // namespace modalcal

@@ -29,15 +29,16 @@
 #include <memory>
 #include <string>
 
+#include "modalcal/export.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
 
 /// Outcome of a numerical computation (as in Spectra's CompInfo).
 enum class EigenStatus { Successful, NotConverging, NumericalIssue };
-std::string to_string(EigenStatus status);
+MODALCAL_EXPORT std::string to_string(EigenStatus status);
 
-struct ModalOptions {
+struct MODALCAL_EXPORT ModalOptions {
   /// Number of elastic (non-rigid) modes wanted. Range: >= 1.
   int num_modes = 10;
   /// Largest number of rigid-body (zero-frequency) modes the model may have: 6 for a
@@ -82,7 +83,7 @@ struct ModalOptions {
   bool IsValid(std::string* error) const;
 };
 
-struct ModalResult {
+struct MODALCAL_EXPORT ModalResult {
   EigenStatus status = EigenStatus::NumericalIssue;
   std::string message;               ///< why it failed, with the likely cause
   Vector eigenvalues;                ///< elastic modes, ascending
@@ -101,11 +102,11 @@ struct ModalResult {
 
 /// Frequency in Hz of an eigenvalue \f$\lambda = \omega^2\f$ (negative eigenvalues give
 /// negative frequencies, so that they stay visible in reports).
-double frequency_hz(double eigenvalue);
+MODALCAL_EXPORT double frequency_hz(double eigenvalue);
 /// Eigenvalue of a frequency in Hz.
-double eigenvalue_of_hz(double hz);
+MODALCAL_EXPORT double eigenvalue_of_hz(double hz);
 
-class ModalSolver {
+class MODALCAL_EXPORT ModalSolver {
  public:
   /// Symbolic analysis of `pattern` (the pattern of K and M; both triangles stored).
   /// \throws std::invalid_argument if the options are invalid or the pattern is not square.

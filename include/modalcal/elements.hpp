@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
@@ -22,13 +23,13 @@ namespace modalcal {
 enum class SolidType { Hex8, Tet4, Tet10 };
 
 /// Number of nodes of a solid element type (8, 4 or 10).
-int nodes_per_element(SolidType type);
+MODALCAL_EXPORT int nodes_per_element(SolidType type);
 /// Lower-case name used in problem files ("hex8", "tet4", "tet10").
-std::string solid_type_name(SolidType type);
+MODALCAL_EXPORT std::string solid_type_name(SolidType type);
 
 /// Unit-property element matrices of one solid element, DOFs ordered node-major
 /// (u_x, u_y, u_z of node 0, then node 1, ...).
-struct SolidElementMatrices {
+struct MODALCAL_EXPORT SolidElementMatrices {
   Matrix volumetric;  ///< per unit bulk modulus
   Matrix deviatoric;  ///< per unit shear modulus
   Matrix mass;        ///< per unit density (consistent)
@@ -41,7 +42,7 @@ struct SolidElementMatrices {
 /// degree-4 rule (mass).
 /// \throws std::invalid_argument if the Jacobian determinant is not positive at a quadrature
 ///         point (inverted or degenerate element) or the column count does not match `type`.
-SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3Xd& coords);
+MODALCAL_EXPORT SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3Xd& coords);
 
 /// Smallest Jacobian determinant \f$\det J = \det(\partial x / \partial \xi)\f$ over the
 /// element's corners and the quadrature points solid_element_matrices() evaluates. Positive:
@@ -53,17 +54,17 @@ SolidElementMatrices solid_element_matrices(SolidType type, const Eigen::Matrix3
 /// \code
 /// if (modalcal::min_jacobian_determinant(SolidType::Tet4, x) <= 0) { /* reject the element */ }
 /// \endcode
-double min_jacobian_determinant(SolidType type, const Eigen::Matrix3Xd& coords);
+MODALCAL_EXPORT double min_jacobian_determinant(SolidType type, const Eigen::Matrix3Xd& coords);
 
 /// Number of sides (faces) of a solid element: 6 for hex8, 4 for tets.
-int num_solid_sides(SolidType type);
+MODALCAL_EXPORT int num_solid_sides(SolidType type);
 
 /// Local node indices (0-based) on side `side` of an element, in Exodus side numbering
 /// (1-based): hex8 sides 1–6 are the faces 0-1-5-4, 1-2-6-5, 2-3-7-6, 0-4-7-3, 0-3-2-1, 4-5-6-7;
 /// tet sides 1–4 are 0-1-3, 1-2-3, 0-3-2, 0-2-1, and a tet10 side adds the mid-edge nodes of its
 /// three edges. Corners come first, ordered counter-clockwise seen from outside the element.
 /// \throws std::invalid_argument if `side` is not in 1..num_solid_sides(type).
-std::vector<int> solid_side_nodes(SolidType type, int side);
+MODALCAL_EXPORT std::vector<int> solid_side_nodes(SolidType type, int side);
 
 /// Stiffness matrix per unit stiffness of one component of a two-node joint spring
 /// (Sierra-SD Joint2G), DOFs ordered (u, θ) of node a then (u, θ) of node b (12 x 12).
@@ -72,9 +73,9 @@ std::vector<int> solid_side_nodes(SolidType type, int side);
 /// \f[ K_c = \begin{pmatrix} e e^T & -e e^T \\ -e e^T & e e^T \end{pmatrix} \f]
 /// placed on the translational (c < 3) or rotational (c ≥ 3) DOFs, e = frame.row(c % 3).
 /// The spring has zero length: the two nodes should coincide (an offset transmits no moment).
-Eigen::Matrix<double, 12, 12> joint_component_matrix(const Mat3& frame, int component);
+MODALCAL_EXPORT Eigen::Matrix<double, 12, 12> joint_component_matrix(const Mat3& frame, int component);
 
 /// Checks that `frame` is orthonormal and right-handed to 1e-8. Returns false otherwise.
-bool is_rotation(const Mat3& frame);
+MODALCAL_EXPORT bool is_rotation(const Mat3& frame);
 
 }  // namespace modalcal

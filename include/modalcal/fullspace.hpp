@@ -55,12 +55,13 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
 
 namespace modalcal {
 
-struct FullSpaceOptions {
+struct MODALCAL_EXPORT FullSpaceOptions {
   /// Newton-phase (Ipopt or block SQP) iterations, over all restarts. Range: >= 0; 0 evaluates the
   /// start only, without globalization or Newton step, and ends with MaxIterations.
   int max_iterations = 200;
@@ -146,7 +147,7 @@ struct FullSpaceOptions {
 
 /// One Newton iteration (Ipopt's, or the block solver's: there complementarity and mu are 0, the
 /// bounds being handled by an active set).
-struct KktRecord {
+struct MODALCAL_EXPORT KktRecord {
   int iteration = 0;             ///< cumulative over restarts
   double objective = 0;
   double primal_infeasibility = 0;  ///< max |constraint| (scaled rows)
@@ -168,7 +169,7 @@ struct KktRecord {
 };
 
 /// The end-of-run check of the eigenpairs against a forward solve at the final parameters.
-struct ModeCheck {
+struct MODALCAL_EXPORT ModeCheck {
   bool passed = false;
   std::string reason;            ///< why not, naming the measured mode
   std::vector<double> mac;       ///< per full-space mode, M-weighted, with its paired forward mode
@@ -182,14 +183,14 @@ enum class FullSpaceStatus {
   Failed,              ///< the Newton solver failed (Ipopt: restoration, ...; block: singular mode block, ...)
   ForwardSolveFailed,  ///< the start could not be evaluated
 };
-std::string to_string(FullSpaceStatus status);
+MODALCAL_EXPORT std::string to_string(FullSpaceStatus status);
 /// "ipopt" or "block", as the CLI's --newton-solver spells them.
-std::string to_string(FullSpaceOptions::NewtonSolver solver);
+MODALCAL_EXPORT std::string to_string(FullSpaceOptions::NewtonSolver solver);
 /// "structured" or "mumps", as the CLI's --kkt-solver spells them.
-std::string to_string(FullSpaceOptions::KktSolver solver);
+MODALCAL_EXPORT std::string to_string(FullSpaceOptions::KktSolver solver);
 
 /// One escape from a minimum where paired modes cross (FullSpaceOptions::max_crossing_escapes).
-struct CrossingEscape {
+struct MODALCAL_EXPORT CrossingEscape {
   std::string crossing;               ///< the measured modes and the model modes they pair with
   double objective_at_minimum = NAN;  ///< J where the pairs crossed
   double objective_after = NAN;       ///< J where the escape's Newton phase ended
@@ -198,7 +199,7 @@ struct CrossingEscape {
   std::string ToString() const;
 };
 
-struct FullSpaceSummary {
+struct MODALCAL_EXPORT FullSpaceSummary {
   FullSpaceStatus status = FullSpaceStatus::ForwardSolveFailed;
   std::string message;
   std::string newton_solver;     ///< to_string(FullSpaceOptions::newton_solver)
@@ -241,17 +242,18 @@ struct FullSpaceSummary {
   std::string FullReport() const;
 };
 
-FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
+MODALCAL_EXPORT FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0,
+                                                    const FullSpaceOptions& options);
 
 /// Directional finite-difference check of the full-space derivatives at the forward solution
 /// of p (multipliers random): per block of unknowns (modes, eigenvalues, parameters), the
 /// relative error of J d, H d and the objective gradient against central differences of the
 /// constraints, of the Lagrangian gradient and of the objective.
-struct FullSpaceDerivativeCheck {
+struct MODALCAL_EXPORT FullSpaceDerivativeCheck {
   double gradient_error = 0, jacobian_error = 0, hessian_error = 0;
   std::vector<std::string> lines;  ///< one per block and quantity, for printing
 };
-FullSpaceDerivativeCheck check_fullspace_derivatives(Objective& objective, const Vector& p, double relative_step = 1e-6,
-                                                     unsigned seed = 1);
+MODALCAL_EXPORT FullSpaceDerivativeCheck check_fullspace_derivatives(Objective& objective, const Vector& p,
+                                                                     double relative_step = 1e-6, unsigned seed = 1);
 
 }  // namespace modalcal

@@ -14,24 +14,26 @@
 
 #include <string>
 
+#include "modalcal/export.hpp"
 #include "modalcal/objective.hpp"
 
 namespace modalcal {
 
-struct GradientCheckOptions {
+struct MODALCAL_EXPORT GradientCheckOptions {
   /// h_j / |p_j|. Range: (0, 0.1). 1e-5 balances truncation error O(h^2) against round-off
   /// in J (eigen-solves carry ~1e-14 relative noise, amplified as noise / h).
   double relative_step = 1e-5;
   double tolerance = 1e-4;      ///< a component passes if its relative error is below. Range: > 0.
 };
 
-struct GradientCheck {
+struct MODALCAL_EXPORT GradientCheck {
   bool ok = false;              ///< every component within tolerance, and every evaluation succeeded
   Vector analytic, finite_difference, relative_error;
   double max_relative_error = 0;
   std::string report;           ///< a table, one row per parameter
 };
 
-GradientCheck check_gradient(Objective& objective, const Vector& p, const GradientCheckOptions& options = {});
+MODALCAL_EXPORT GradientCheck check_gradient(Objective& objective, const Vector& p,
+                                             const GradientCheckOptions& options = {});
 
 }  // namespace modalcal

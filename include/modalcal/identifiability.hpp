@@ -15,12 +15,13 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/reduced.hpp"
 
 namespace modalcal {
 
-struct Identifiability {
+struct MODALCAL_EXPORT Identifiability {
   Vector singular_values;          ///< descending, padded with zeros up to the parameter count
   Matrix directions;               ///< V: columns are parameter-space directions (scaled variables)
   std::vector<bool> poorly_identified;  ///< per parameter
@@ -30,7 +31,8 @@ struct Identifiability {
 };
 
 /// \param relative_threshold a direction is weak if sigma_k < relative_threshold * sigma_1.
-Identifiability analyze_identifiability(Objective& objective, const Vector& p, const ParameterScaling& scaling,
-                                        double relative_threshold = 1e-3);
+MODALCAL_EXPORT Identifiability analyze_identifiability(Objective& objective, const Vector& p,
+                                                        const ParameterScaling& scaling,
+                                                        double relative_threshold = 1e-3);
 
 }  // namespace modalcal

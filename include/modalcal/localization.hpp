@@ -64,12 +64,13 @@
 #include <vector>
 
 #include "modalcal/eigen.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
 
-struct LocalizationOptions {
+struct MODALCAL_EXPORT LocalizationOptions {
   /// Number of elastic model modes in the expansion basis (the lowest ones; the rigid-body modes
   /// of a free-free model are added to them). It must include every paired mode, and without
   /// regularization it may not have more columns than there are sensor readings. 0 chooses
@@ -101,7 +102,7 @@ struct LocalizationOptions {
 };
 
 /// One measured mode, expanded to all DOFs, and its residual force.
-struct ExpandedMode {
+struct MODALCAL_EXPORT ExpandedMode {
   int measured = 0;           ///< 0-based index into Problem::measured
   int model_mode = 0;         ///< 0-based elastic model mode it is paired with
   double measured_hz = 0, model_hz = 0;
@@ -117,14 +118,14 @@ struct ExpandedMode {
 };
 
 /// A region of the model and its share of the error indicator.
-struct RegionShare {
+struct MODALCAL_EXPORT RegionShare {
   std::string name;
   std::string kind;           ///< "block", "joint", "spring", "point mass" or "node set"
   double energy = 0;
   double share = 0;           ///< energy / Localization::total_energy, in [0, 1]
 };
 
-struct Localization {
+struct MODALCAL_EXPORT Localization {
   bool ok = false;
   std::string message;                 ///< why not ok (failed solve, pairing impossible)
   std::vector<ExpandedMode> modes;     ///< the measured modes that have shapes
@@ -150,10 +151,11 @@ struct Localization {
 /// Measured modes without a shape are skipped.
 /// \throws std::invalid_argument for invalid options, a parameter vector of the wrong size, no
 ///         measured shape, or a basis with more modes than sensor readings without regularization.
-Localization localize_model_error(const Problem& problem, const Vector& p, const LocalizationOptions& options = {});
+MODALCAL_EXPORT Localization localize_model_error(const Problem& problem, const Vector& p,
+                                                  const LocalizationOptions& options = {});
 
 /// The ranking as a table (rank, region, kind, share %), its first `max_rows` rows, preceded by
 /// one line per expanded mode (frequencies, MAC, sensor misfit, energy).
-std::string format_ranking(const Localization& result, int max_rows = 15);
+MODALCAL_EXPORT std::string format_ranking(const Localization& result, int max_rows = 15);
 
 }  // namespace modalcal

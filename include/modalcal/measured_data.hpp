@@ -15,25 +15,26 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
 
 /// A sensor as a data file records it: it is matched to a problem's sensor by position and
 /// direction, so that it survives a change of mesh numbering.
-struct SensorRecord {
+struct MODALCAL_EXPORT SensorRecord {
   long node_id = 0;   ///< the node's id in the model the data were made with (for people)
   int component = 0;  ///< 0..2 = x, y, z
   Vec3 position = Vec3::Zero();
 };
 
 /// Where a synthetic mode came from, for provenance.
-struct TruthModeRecord {
+struct MODALCAL_EXPORT TruthModeRecord {
   int mode = 0;              ///< 1-based elastic mode of the truth model
   double frequency_hz = 0;   ///< its frequency before noise
 };
 
-struct MeasuredData {
+struct MODALCAL_EXPORT MeasuredData {
   std::string synthesized_from;        ///< the nominal problem file (empty for test data)
   std::vector<SensorRecord> sensors;
   std::vector<MeasuredMode> modes;     ///< shapes in the order of `sensors`

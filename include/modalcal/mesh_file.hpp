@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "modalcal/elements.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
@@ -33,14 +34,14 @@ namespace modalcal {
 enum class MeshFileFormat { Gmsh, Exodus };
 
 /// "gmsh" or "exodus".
-std::string to_string(MeshFileFormat format);
+MODALCAL_EXPORT std::string to_string(MeshFileFormat format);
 
 /// The format a file name's extension stands for: `.msh` → Gmsh; `.exo`, `.e`, `.g`, `.gen`,
 /// `.exoII`, `.ex2` → Exodus II (case-insensitive); anything else: none.
-std::optional<MeshFileFormat> mesh_format_from_extension(const std::string& path);
+MODALCAL_EXPORT std::optional<MeshFileFormat> mesh_format_from_extension(const std::string& path);
 
 /// Elements of one type under one name: a Gmsh physical volume group or an Exodus element block.
-struct MeshFileBlock {
+struct MODALCAL_EXPORT MeshFileBlock {
   std::string name;    ///< the group's or block's name; unnamed: "volume_<tag>" (Gmsh), "block_<id>" (Exodus)
   long id = 0;         ///< the physical tag (Gmsh) or block id (Exodus)
   SolidType type = SolidType::Hex8;
@@ -51,21 +52,21 @@ struct MeshFileBlock {
 
 /// Named nodes: a Gmsh physical surface, curve or point group, an Exodus node set, or the nodes
 /// on an Exodus side set's sides.
-struct MeshFileNodeSet {
+struct MODALCAL_EXPORT MeshFileNodeSet {
   std::string name;    ///< unnamed: "surface_<tag>", "curve_<tag>", "point_<tag>" (Gmsh), "nodeset_<id>", "sideset_<id>" (Exodus)
   std::string source;  ///< what it came from, for messages, e.g. "physical surface 2" or "side set 3"
   std::vector<int> nodes;  ///< indices into MeshFile::coordinates, sorted, unique
 };
 
 /// An Exodus side set as element sides (its nodes are also a MeshFile node set of the same name).
-struct MeshFileSideSet {
+struct MODALCAL_EXPORT MeshFileSideSet {
   std::string name;  ///< unnamed: "sideset_<id>"
   long id = 0;
   std::vector<long> elements;  ///< the file's element numbers (1-based, over all blocks in file order)
   std::vector<int> sides;      ///< 1-based Exodus side numbers (solid_side_nodes()), one per element
 };
 
-struct MeshFile {
+struct MODALCAL_EXPORT MeshFile {
   std::string path;
   MeshFileFormat format = MeshFileFormat::Gmsh;
   std::vector<Vec3> coordinates;  ///< nodes used by the blocks' elements
@@ -92,6 +93,6 @@ struct MeshFile {
 ///         type (named, with the supported ones), a physical group or block mixing element types
 ///         or an element in two physical volume groups, no physical volume group, duplicate
 ///         names, an inverted or degenerate element (file element id and block named).
-MeshFile read_mesh_file(const std::string& path, std::optional<MeshFileFormat> format = std::nullopt);
+MODALCAL_EXPORT MeshFile read_mesh_file(const std::string& path, std::optional<MeshFileFormat> format = std::nullopt);
 
 }  // namespace modalcal

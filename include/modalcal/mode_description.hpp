@@ -22,10 +22,11 @@
 
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
+#include "modalcal/export.hpp"
 
 namespace modalcal {
 
-struct ModeDescription {
+struct MODALCAL_EXPORT ModeDescription {
   int index = 0;                              ///< 1-based elastic mode index
   double frequency_hz = 0;
   std::array<double, 3> energy_fraction{};    ///< kinetic energy share along x, y, z
@@ -37,10 +38,10 @@ struct ModeDescription {
 };
 
 /// Describes the elastic modes of `result`. `model.mode_families` names the labels.
-std::vector<ModeDescription> describe_modes(const ParametricSystem& system, const Vector& p,
-                                            const SparseMatrix& M, const ModalResult& result);
+MODALCAL_EXPORT std::vector<ModeDescription> describe_modes(const ParametricSystem& system, const Vector& p,
+                                                            const SparseMatrix& M, const ModalResult& result);
 
 /// 1-based index (within `modes`) of the `k`-th (1-based) mode whose label is `family`, or 0.
-int find_family_mode(const std::vector<ModeDescription>& modes, const std::string& family, int k);
+MODALCAL_EXPORT int find_family_mode(const std::vector<ModeDescription>& modes, const std::string& family, int k);
 
 }  // namespace modalcal

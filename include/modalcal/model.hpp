@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "modalcal/elements.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
@@ -30,7 +31,7 @@ namespace modalcal {
 using PropertyId = int;
 constexpr PropertyId kNoProperty = -1;
 
-struct Property {
+struct MODALCAL_EXPORT Property {
   std::string name;  ///< `<entity>.<property>`, unique in the model
   double value = 0;  ///< nominal value in the problem's unit system
 };
@@ -42,14 +43,14 @@ enum class ElasticForm { BulkShear, YoungPoisson };
 /// A part of a block with its own multipliers, applied on top of the block's: model-form
 /// diagnosis's candidates "stiffer or heavier here" (model_change.hpp, `region@...`). Regions of
 /// one block may overlap; an element in several carries the product of their multipliers.
-struct BlockRegion {
+struct MODALCAL_EXPORT BlockRegion {
   std::string name;           ///< unique among the model's entities, e.g. "foam_region_0p05_0_0p45_n12"
   std::vector<int> elements;  ///< indices into the block's elements, sorted, unique, non-empty
   PropertyId stiffness_scale = kNoProperty;  ///< 1 when absent
   PropertyId mass_scale = kNoProperty;       ///< 1 when absent
 };
 
-struct ElementBlock {
+struct MODALCAL_EXPORT ElementBlock {
   std::string name;
   SolidType type = SolidType::Hex8;
   std::vector<int> connectivity;  ///< node indices, nodes_per_element(type) per element
@@ -67,7 +68,7 @@ struct ElementBlock {
   }
 };
 
-struct NodeSet {
+struct MODALCAL_EXPORT NodeSet {
   std::string name;
   std::vector<int> nodes;  ///< node indices, sorted, unique
 };
@@ -79,7 +80,7 @@ inline const std::vector<std::string> kStiffnessComponentNames{"kx", "ky", "kz",
 /// Two-node six-component spring in a local frame (Sierra-SD Joint2G). Components are
 /// kx, ky, kz (translations) and krx, kry, krz (rotations) along/about the frame's rows.
 /// Rotational components need both nodes to carry rotations.
-struct Joint {
+struct MODALCAL_EXPORT Joint {
   std::string name;
   int node_a = -1, node_b = -1;
   Mat3 frame = Mat3::Identity();  ///< rows: local x, y, z axes in global coordinates
@@ -88,7 +89,7 @@ struct Joint {
 };
 
 /// Springs from each node of a set to ground, in global directions (kx..krz as for joints).
-struct GroundSpring {
+struct MODALCAL_EXPORT GroundSpring {
   std::string name;
   std::vector<int> nodes;
   /// A flexible support: the springs stand where the nodes were fixed (`support@SET:kx=...`,
@@ -100,7 +101,7 @@ struct GroundSpring {
 
 /// A lumped mass at a node, with optional rotary inertia about global axes (needs a node
 /// carrying rotations).
-struct PointMass {
+struct MODALCAL_EXPORT PointMass {
   std::string name;
   int node = -1;
   PropertyId mass = kNoProperty;
@@ -110,20 +111,20 @@ struct PointMass {
 /// RBE2-like rigid coupling: the translations of each coupled node follow the six DOFs of the
 /// reference node, \f$u_s = u_r + \theta_r \times (x_s - x_r)\f$, imposed by eliminating the
 /// coupled nodes' DOFs. The reference node must carry rotations.
-struct RigidCoupling {
+struct MODALCAL_EXPORT RigidCoupling {
   std::string name;
   int reference = -1;
   std::vector<int> nodes;
 };
 
 /// DOFs fixed to zero on a set of nodes.
-struct FixedDofs {
+struct MODALCAL_EXPORT FixedDofs {
   std::string name;  ///< for messages, e.g. the node set it came from
   std::vector<int> nodes;
   std::array<bool, 6> components{false, false, false, false, false, false};
 };
 
-struct Model {
+struct MODALCAL_EXPORT Model {
   std::vector<Vec3> coordinates;     ///< one per node
   std::vector<long> node_ids;        ///< external (file) ids, for messages and sensors
   std::vector<bool> has_rotations;   ///< node carries six DOFs instead of three
@@ -158,8 +159,8 @@ struct Model {
 };
 
 /// Name of a global direction index 0..5 ("x", "y", "z", "rx", "ry", "rz").
-std::string component_name(int component);
+MODALCAL_EXPORT std::string component_name(int component);
 /// Inverse of component_name; -1 if unknown.
-int component_from_name(const std::string& name);
+MODALCAL_EXPORT int component_from_name(const std::string& name);
 
 }  // namespace modalcal

@@ -57,6 +57,7 @@
 #include <utility>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/model.hpp"
 #include "modalcal/types.hpp"
 
@@ -64,7 +65,7 @@ namespace modalcal {
 
 /// Where an added entity acts: the nodes of a node set, one node by its external id, or the node
 /// nearest a point (mesh or reference node; ties go to the lower index).
-struct NodePlace {
+struct MODALCAL_EXPORT NodePlace {
   enum class Kind { NodeSet, NodeId, Point };
   Kind kind = Kind::NodeSet;
   std::string node_set;      ///< Kind::NodeSet
@@ -72,7 +73,7 @@ struct NodePlace {
   Vec3 point = Vec3::Zero(); ///< Kind::Point
 };
 
-struct ModelChange {
+struct MODALCAL_EXPORT ModelChange {
   enum class Kind { SetProperty, AddPointMass, AddSpring, AddJoint, FlexibleSupport, AddRegion };
   Kind kind = Kind::SetProperty;
   std::string entity;              ///< SetProperty: the block, joint, spring or point mass
@@ -85,7 +86,7 @@ struct ModelChange {
 
 /// A change as it acts on a particular model: what reports and the effect ranking show
 /// (JSON `hidden_effect: [{name, description, value, nominal_value}]`).
-struct ModelEffect {
+struct MODALCAL_EXPORT ModelEffect {
   std::string name;          ///< canonical `<entity>.<property>`, e.g. "added_mass_top.mass"
   std::string description;   ///< in words, e.g. "rotational stiffness about x of joint joint2"
   double value = 0;          ///< in the changed model
@@ -96,44 +97,44 @@ struct ModelEffect {
 
 /// Parses a change string (grammar above).
 /// \throws std::invalid_argument "change 'TEXT': ..." naming what is malformed and the expected form.
-ModelChange parse_model_change(const std::string& text);
+MODALCAL_EXPORT ModelChange parse_model_change(const std::string& text);
 
 /// The canonical text of a change; parse_model_change(to_string(c)) gives c back (numbers in
 /// their shortest round-trip form).
-std::string to_string(const ModelChange& change);
+MODALCAL_EXPORT std::string to_string(const ModelChange& change);
 
 /// Applies `change` to `*model` and returns what it did. The model stays valid (Model::validate).
 /// \throws std::invalid_argument "change 'TEXT': ..." naming the item and the likely cause: an
 ///   unknown entity or node set (listing the known ones), an unknown property (listing the
 ///   entity's), a value out of range, a rotational component on a node without rotations.
 ///   `*model` is unchanged when it throws.
-ModelEffect apply_model_change(Model* model, const ModelChange& change);
+MODALCAL_EXPORT ModelEffect apply_model_change(Model* model, const ModelChange& change);
 
 /// The block (index) and elements a region change (`region@...`) covers on `model`.
 /// \throws std::invalid_argument as apply_model_change for a malformed region or unknown block;
 ///   for another kind of change.
-std::pair<int, std::vector<int>> region_elements(const Model& model, const ModelChange& change);
+MODALCAL_EXPORT std::pair<int, std::vector<int>> region_elements(const Model& model, const ModelChange& change);
 
 /// The name and description `change` would have on `model`, without changing it.
 /// \throws as apply_model_change.
-ModelEffect describe_model_change(const Model& model, const ModelChange& change);
+MODALCAL_EXPORT ModelEffect describe_model_change(const Model& model, const ModelChange& change);
 
 /// Words for a property of `model` by its name, e.g. "foam.G" -> "shear modulus of block foam".
 /// A name whose entity is unknown is returned as it is.
-std::string describe_property(const Model& model, const std::string& property_name);
+MODALCAL_EXPORT std::string describe_property(const Model& model, const std::string& property_name);
 
 /// The value a property of `model` has when it is absent: 1 for a scale factor, +infinity for a
 /// component of a flexible support (GroundSpring::replaces_fixity), else 0. `property_name` is
 /// `<entity>.<property>`.
-double absent_property_value(const Model& model, const std::string& property_name);
+MODALCAL_EXPORT double absent_property_value(const Model& model, const std::string& property_name);
 
 /// The properties of `changed` that are absent from `nominal` or have another value there, as
 /// effects (nominal_value as absent_property_value when absent), in `changed`'s order,
 /// except those named in `excluded` (e.g. the calibration parameters' targets).
-std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
-                                              const std::vector<std::string>& excluded = {});
+MODALCAL_EXPORT std::vector<ModelEffect> property_differences(const Model& nominal, const Model& changed,
+                                                              const std::vector<std::string>& excluded = {});
 
 /// Shortest text that reads back as exactly `value` (std::to_chars), e.g. "0.05", "3.1e+05".
-std::string format_round_trip(double value);
+MODALCAL_EXPORT std::string format_round_trip(double value);
 
 }  // namespace modalcal

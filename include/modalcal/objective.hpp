@@ -39,13 +39,14 @@
 
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
 
 /// Maps physical parameters p to the optimizer's dimensionless variables x and back:
 /// none: x = p; linear: x = p / reference; log: x = log10 p.
-class ParameterScaling {
+class MODALCAL_EXPORT ParameterScaling {
  public:
   explicit ParameterScaling(const std::vector<Parameter>& parameters);
   /// Same parameters, every one with `scaling`.
@@ -62,7 +63,7 @@ class ParameterScaling {
   Vector reference_;
 };
 
-struct ObjectiveOptions {
+struct MODALCAL_EXPORT ObjectiveOptions {
   /// How gradients are computed: by the adjoint (exact, at most one deflated solve per measured
   /// shape), or by central differences (2 forward solves per parameter, as a black-box tool
   /// would; for comparisons and cross-checks). Jacobians and Hessians are always analytic.
@@ -120,7 +121,7 @@ struct ObjectiveOptions {
 };
 
 /// One measured mode and the model mode it was paired with at this evaluation.
-struct PairedMode {
+struct MODALCAL_EXPORT PairedMode {
   int measured = 0;             ///< 0-based index into Problem::measured
   int model = 0;                ///< 0-based elastic model mode index
   double measured_hz = 0, model_hz = 0;
@@ -131,7 +132,7 @@ struct PairedMode {
 /// What an evaluation computes; each includes the ones before it.
 enum class Need { Value, Gradient, Jacobian, Hessian };
 
-struct Evaluation {
+struct MODALCAL_EXPORT Evaluation {
   bool ok = false;
   std::string message;               ///< why not ok (failed solve, pairing impossible)
   double value = 0;
@@ -157,7 +158,7 @@ struct Evaluation {
   int linear_solves = 0;             ///< right-hand sides solved with the factorization
 };
 
-class Objective {
+class MODALCAL_EXPORT Objective {
  public:
   /// \throws std::invalid_argument for invalid options, or a problem without measured modes.
   explicit Objective(const Problem& problem, ObjectiveOptions options = {});
@@ -198,6 +199,6 @@ class Objective {
 };
 
 /// Modal assurance criterion \f$ (a^T b)^2 / ((a^T a)(b^T b)) \f$ (0 if either is zero).
-double mac(const Vector& a, const Vector& b);
+MODALCAL_EXPORT double mac(const Vector& a, const Vector& b);
 
 }  // namespace modalcal

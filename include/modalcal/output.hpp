@@ -6,17 +6,18 @@
 
 #include <string>
 #include <vector>
+#include "modalcal/export.hpp"
 
 namespace modalcal {
 
 /// \throws std::invalid_argument if `path` exists and is one of `inputs` (the same file on disk).
 /// For writers of several files, which check every target before writing the first.
-void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
+MODALCAL_EXPORT void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
 
 /// check_not_input(), and that the folder `path` would be written in exists: what a command
 /// checks of each output before it runs, so that a bad output name costs no computation.
 /// \throws std::invalid_argument naming the path and the cause.
-void check_output_path(const std::string& path, const std::vector<std::string>& inputs);
+MODALCAL_EXPORT void check_output_path(const std::string& path, const std::vector<std::string>& inputs);
 
 /// Writes `content` to `path` atomically (temporary file + rename in the same directory) when
 /// `path` is a regular file or does not exist; straight through it, as a shell redirection would,
@@ -25,7 +26,7 @@ void check_output_path(const std::string& path, const std::vector<std::string>& 
 /// \throws std::invalid_argument if `path` is one of `inputs` (same file on disk), a directory,
 ///         or in a folder that does not exist; std::runtime_error naming the path if it cannot
 ///         be written.
-void write_file_atomically(const std::string& path, const std::string& content,
-                           const std::vector<std::string>& inputs = {});
+MODALCAL_EXPORT void write_file_atomically(const std::string& path, const std::string& content,
+                                           const std::vector<std::string>& inputs = {});
 
 }  // namespace modalcal

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/model.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/types.hpp"
@@ -25,9 +26,9 @@ namespace modalcal {
 
 /// How the optimizer sees a parameter: as is, divided by a reference value, or as log10.
 enum class Scaling { None, Linear, Log };
-std::string to_string(Scaling scaling);
+MODALCAL_EXPORT std::string to_string(Scaling scaling);
 
-struct Parameter {
+struct MODALCAL_EXPORT Parameter {
   std::string name;
   std::vector<PropertyId> targets;  ///< properties this parameter sets
   double initial = 0;
@@ -38,14 +39,14 @@ struct Parameter {
 };
 
 /// One measured DOF: the displacement of `node` along a global direction.
-struct Sensor {
+struct MODALCAL_EXPORT Sensor {
   int node = -1;
   int component = 0;  ///< 0..2 = x, y, z
   std::string label;  ///< e.g. "node 12 +x"
 };
 
 /// How a measured mode finds its model mode when its shape alone cannot tell.
-struct PairingRule {
+struct MODALCAL_EXPORT PairingRule {
   enum class Kind { Mac, ModelIndex, Family };
   Kind kind = Kind::Mac;
   int model_index = 0;       ///< 1-based elastic mode index (ModelIndex)
@@ -53,7 +54,7 @@ struct PairingRule {
   int family_index = 0;      ///< 1-based index within the family (Family)
 };
 
-struct MeasuredMode {
+struct MODALCAL_EXPORT MeasuredMode {
   std::string label;          ///< e.g. "axial 1"
   double frequency_hz = 0;    ///< > 0
   double weight = 1;          ///< beta_i of the eigenvalue term; 0 switches it off
@@ -70,14 +71,14 @@ struct MeasuredMode {
   bool has_shape_term() const { return shape.size() > 0 && shape_weight > 0; }
 };
 
-struct ProblemOptions {
+struct MODALCAL_EXPORT ProblemOptions {
   int num_modes = 10;          ///< elastic modes computed by the forward solve
   int max_rigid_modes = -1;    ///< -1: 6 if the model has no supports, else 0
   double tolerance = 1e-10;    ///< eigen-solver tolerance
 };
 
 /// Measured modes synthesized from the truth parameters at load time (noise free).
-struct SyntheticSpec {
+struct MODALCAL_EXPORT SyntheticSpec {
   std::vector<int> modes;     ///< 1-based elastic model mode indices
   bool shapes = true;         ///< include shapes at the sensors
   int source_line = 0;
@@ -86,7 +87,7 @@ struct SyntheticSpec {
 /// Gaussian noise of synthetic measurements (`fullspace_calib synth`), with \f$N(0,1)\f$ standard
 /// normal draws: a frequency becomes \f$f\,(1 + \sigma_f N)\f$ and each shape value, the shape first
 /// scaled to a largest magnitude of 1, \f$\phi_s + \sigma_\phi \max_s|\phi_s|\, N\f$.
-struct MeasurementNoise {
+struct MODALCAL_EXPORT MeasurementNoise {
   double frequency = 0;    ///< \f$\sigma_f\f$, relative standard deviation of a frequency. Range: [0, 0.2] (a frequency must stay positive).
   double shape = 0;        ///< \f$\sigma_\phi\f$, of a shape value relative to the largest. Range: [0, 1].
   std::uint64_t seed = 1;  ///< the same seed gives the same draws on every platform. Any value.
@@ -96,7 +97,7 @@ struct MeasurementNoise {
 
 /// The truth synthetic measured data were made from, so that reports can show what was hidden
 /// beside what a diagnosis found.
-struct SyntheticTruth {
+struct MODALCAL_EXPORT SyntheticTruth {
   /// Where the truth model came from, e.g. "the nominal model with 1 change" or a truth file.
   std::string source;
   /// The change strings applied to make the truth (canonical, see model_change.hpp); empty when
@@ -116,7 +117,7 @@ struct SyntheticTruth {
 /// A candidate effect the problem file declares (`effects:`): the diagnosis ranks it beside the
 /// candidates it generates from the model's structure (effects.hpp), and calibration adds it as a
 /// parameter when it is enabled. Unset numbers take the defaults of automatic candidates.
-struct DeclaredEffect {
+struct MODALCAL_EXPORT DeclaredEffect {
   /// A change without its value (model_change.hpp), e.g. "joint2.kry", "point_mass@[9,4,3.5]:mass",
   /// "support@post_bottom:kx"; checked against the model at load time.
   std::string effect;
@@ -128,7 +129,7 @@ struct DeclaredEffect {
   int source_line = 0;
 };
 
-struct Problem {
+struct MODALCAL_EXPORT Problem {
   std::string path;            ///< the file it came from
   /// Every file loading read, as written in the files naming them: `path`, the files it extends,
   /// its measured-data, test-data and mesh files. No output may replace one of them
@@ -173,7 +174,7 @@ struct Problem {
 };
 
 /// An error in user input, with its location. what() is "file:line: message".
-class ProblemError : public std::invalid_argument {
+class MODALCAL_EXPORT ProblemError : public std::invalid_argument {
  public:
   ProblemError(const std::string& file, int line, const std::string& message);
   const std::string& file() const { return file_; }

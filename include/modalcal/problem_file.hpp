@@ -8,12 +8,14 @@
 ///
 /// \code
 /// modalcal::Problem problem = modalcal::load_problem("problems/lfu/synthetic.yaml");
+/// modalcal::synthesize_measured(&problem);  // synthesis.hpp: a `measured: synthetic:` section's modes
 /// \endcode
 
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/measured_data.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
@@ -21,7 +23,7 @@
 namespace modalcal {
 
 /// Settings that override a problem file at load time.
-struct LoadOptions {
+struct MODALCAL_EXPORT LoadOptions {
   double refinement = 0;       ///< > 0 overrides a generated mesh's refinement factor (an error with a mesh file)
   /// Sensors placed at a point, and a data file's sensors, take the nearest node however far it
   /// is: for a copy of a problem on a finer mesh, where the points may fall between nodes.
@@ -30,27 +32,27 @@ struct LoadOptions {
   /// physical memory; a larger mesh is refused like one too large for the machine (the fuzz
   /// targets keep meshes small this way).
   double memory_bytes = 0;
-  /// false: a `measured: synthetic:` section is read and checked, but its modes are not computed
-  /// (Problem::measured stays empty): for checking a file without its modal solve.
-  bool synthesize = true;
 };
 
-/// Reads and validates a problem file.
+/// Reads and validates a problem file. A `measured: synthetic:` section is read and checked, but
+/// its modes are not computed: Problem::measured stays empty until synthesize_measured()
+/// (synthesis.hpp) solves the truth model, so that reading a file never runs a modal solve.
 /// \throws ProblemError naming the file, the line and what is wrong, also for a file that is not
 ///         a regular one or has more than 16 MB, and for a generated mesh whose modal solve would
 ///         need more memory than the machine has (estimated from its size before it is made);
 ///         std::invalid_argument for a refinement that is negative or not finite.
-Problem load_problem(const std::string& path, const LoadOptions& options = {});
+MODALCAL_EXPORT Problem load_problem(const std::string& path, const LoadOptions& options = {});
 
 /// Reads a changes file: a YAML map with a list `changes:` of change strings and an optional
 /// `description:`. Returns nullopt if the file has no `changes` key (it is then a problem file).
 /// \throws ProblemError (problem.hpp) naming the file and line of an unreadable file, a
 ///   malformed change, or a key beside `changes` and `description`.
-std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path);
+MODALCAL_EXPORT std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path);
 
 /// Writes `data` as a YAML data file (atomically; numbers in their shortest round-trip form, so
 /// reading it back gives the same doubles).
 /// \throws std::invalid_argument if `path` is one of `inputs`, std::runtime_error if it cannot be written.
-void write_measured_data(const std::string& path, const MeasuredData& data, const std::vector<std::string>& inputs);
+MODALCAL_EXPORT void write_measured_data(const std::string& path, const MeasuredData& data,
+                                         const std::vector<std::string>& inputs);
 
 }  // namespace modalcal

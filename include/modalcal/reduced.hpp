@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/objective.hpp"
 
 namespace modalcal {
@@ -51,9 +52,9 @@ enum class ReducedStatus {
   LineSearchFailed,    ///< no decrease along the search direction (at the best point found)
   ForwardSolveFailed,  ///< the initial point could not be evaluated
 };
-std::string to_string(ReducedStatus status);
+MODALCAL_EXPORT std::string to_string(ReducedStatus status);
 
-struct IterationRecord {
+struct MODALCAL_EXPORT IterationRecord {
   int iteration = 0;
   double objective = 0;
   double gradient_norm = 0;     ///< projected gradient norm in the optimizer's variables
@@ -63,7 +64,7 @@ struct IterationRecord {
   Vector p;
 };
 
-struct ReducedOptions {
+struct MODALCAL_EXPORT ReducedOptions {
   enum class Method { Lbfgs, GaussNewton, Newton };
   Method method = Method::Lbfgs;
   /// Range: >= 0 (0 only evaluates the start).
@@ -94,7 +95,7 @@ struct ReducedOptions {
   bool IsValid(std::string* error) const;
 };
 
-struct ReducedSummary {
+struct MODALCAL_EXPORT ReducedSummary {
   ReducedStatus status = ReducedStatus::ForwardSolveFailed;
   std::string message;
   std::string method;
@@ -118,8 +119,8 @@ struct ReducedSummary {
 /// three errors that each fall at least 2x and lie above both `floor` and twice the smallest
 /// error (the rounding floor the run reached, where the rate is no longer visible); NaN if there
 /// are none.
-double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
+MODALCAL_EXPORT double estimate_convergence_order(const std::vector<double>& errors, double floor = 1e-14);
 
-ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);
+MODALCAL_EXPORT ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);
 
 }  // namespace modalcal

@@ -28,12 +28,13 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
 
-struct ResidualTestOptions {
+struct MODALCAL_EXPORT ResidualTestOptions {
   /// Significance level of the overall test; a mode is flagged at level / number of modes.
   /// Range: (0, 0.5). Default 0.01.
   double significance = 0.01;
@@ -41,7 +42,7 @@ struct ResidualTestOptions {
 };
 
 /// One measured mode's share of the residual.
-struct ModeResidual {
+struct MODALCAL_EXPORT ModeResidual {
   int measured = 0;          ///< 0-based index into Problem::measured
   std::string label;
   int model = 0;             ///< 0-based elastic model mode it was paired with
@@ -53,7 +54,7 @@ struct ModeResidual {
   bool flagged = false;        ///< p_value < significance / number of tested modes
 };
 
-struct ResidualTest {
+struct MODALCAL_EXPORT ResidualTest {
   double statistic = 0;      ///< X^2
   int dof = 0;               ///< nu (at least 1)
   double p_value = 1;        ///< P(chi2_nu > X^2)
@@ -69,12 +70,13 @@ struct ResidualTest {
 /// freedom; shapes are tested only when noise.shape > 0.
 /// \throws std::invalid_argument if noise.frequency is not positive, the evaluation failed, or
 ///         the options are invalid.
-ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation, const MeasurementNoise& noise,
-                           int num_parameters, const ResidualTestOptions& options = {});
+MODALCAL_EXPORT ResidualTest test_residual(const Objective& objective, const Evaluation& evaluation,
+                                           const MeasurementNoise& noise, int num_parameters,
+                                           const ResidualTestOptions& options = {});
 
 /// The number of data n the residual holds: one per weighted frequency, s − 1 per weighted shape
 /// of s values (a shape's scale is not a datum).
-int count_data(const Problem& problem, const Evaluation& evaluation);
+MODALCAL_EXPORT int count_data(const Problem& problem, const Evaluation& evaluation);
 
 /// A copy of `problem` whose objective weights make twice its misfit the statistic \f$X^2\f$ above
 /// (to first order), so that calibrating it is a maximum-likelihood fit under `noise`, as the
@@ -85,14 +87,14 @@ int count_data(const Problem& problem, const Evaluation& evaluation);
 /// \f$\|e_i\|^2 = 1 - \mathrm{MAC}\f$ (the measured shape's largest entry stands in for the fitted
 /// one's). Terms switched off (weight 0) stay off; shape weights are kept when noise.shape is 0.
 /// \throws std::invalid_argument if noise.frequency is not positive or noise is invalid.
-Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise);
+MODALCAL_EXPORT Problem noise_weighted(const Problem& problem, const MeasurementNoise& noise);
 
 /// The critical value c with \f$P(\chi^2_\nu > c) = \alpha\f$ (bisection on
 /// chi_square_upper_tail). Range: nu >= 1, alpha in (0, 1).
-double chi_square_critical_value(double alpha, int nu);
+MODALCAL_EXPORT double chi_square_critical_value(double alpha, int nu);
 
 /// Upper tail of the chi-square distribution, \f$P(\chi^2_\nu > x) = Q(\nu/2, x/2)\f$ (regularized
 /// upper incomplete gamma function). Range: nu >= 1, x >= 0.
-double chi_square_upper_tail(double x, int nu);
+MODALCAL_EXPORT double chi_square_upper_tail(double x, int nu);
 
 }  // namespace modalcal

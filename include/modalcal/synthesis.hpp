@@ -21,6 +21,7 @@
 
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/measured_data.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
@@ -29,7 +30,7 @@ namespace modalcal {
 
 /// A truth model ready to solve: `problem.model` has every value substituted (it has no
 /// parameters), `problem.options` decide the solve, and `record` says what it hides.
-struct TruthModel {
+struct MODALCAL_EXPORT TruthModel {
   Problem problem;
   SyntheticTruth record;
 };
@@ -45,12 +46,13 @@ struct TruthModel {
 /// not a nominal parameter's target, and the nominal parameters' truth-model values.
 /// \throws std::invalid_argument naming the change and cause if a change fails to apply or sets
 ///   a calibration parameter's target (that is not hidden: give the parameter a `truth` instead).
-TruthModel make_truth(const Problem& nominal, const Problem* truth_file, const std::vector<ModelChange>& changes);
+MODALCAL_EXPORT TruthModel make_truth(const Problem& nominal, const Problem* truth_file,
+                                      const std::vector<ModelChange>& changes);
 
 /// The records of sensors of `model` (node id, direction and position of each).
-std::vector<SensorRecord> sensor_records(const Model& model, const std::vector<Sensor>& sensors);
+MODALCAL_EXPORT std::vector<SensorRecord> sensor_records(const Model& model, const std::vector<Sensor>& sensors);
 
-struct SynthesisOptions {
+struct MODALCAL_EXPORT SynthesisOptions {
   /// 1-based elastic modes of the truth model to measure, in this order. Range: non-empty,
   /// each >= 1, no repeats.
   std::vector<int> modes;
@@ -67,7 +69,21 @@ struct SynthesisOptions {
 /// positive) before noise is added.
 /// \throws std::invalid_argument for invalid options, a sensor with no truth-model node at its
 ///   position, or a mode that no sensor sees; std::runtime_error if the truth model's solve fails.
-MeasuredData synthesize_measured_data(const Problem& nominal, const TruthModel& truth,
-                                      const std::vector<Sensor>& sensors, const SynthesisOptions& options);
+MODALCAL_EXPORT MeasuredData synthesize_measured_data(const Problem& nominal, const TruthModel& truth,
+                                                      const std::vector<Sensor>& sensors,
+                                                      const SynthesisOptions& options);
+
+/// Fills problem->measured as its `measured: synthetic:` section asks: the section's modes of the
+/// model at the parameters' truth values (frequency, and shape at the sensors unless the section
+/// says `shapes: false`; noise free), paired by MAC with shapes and by mode index without; sets
+/// problem->synthetic_truth (no hidden effect). Does nothing for a problem without that section.
+/// load_problem() reads the section but computes nothing, so this call comes between them:
+/// \code
+/// modalcal::Problem problem = modalcal::load_problem("problems/portal-frame/synthetic.yaml");
+/// modalcal::synthesize_measured(&problem);
+/// \endcode
+/// \throws ProblemError at the section's line if a parameter has no truth value or the truth
+///   model's solve fails.
+MODALCAL_EXPORT void synthesize_measured(Problem* problem);
 
 }  // namespace modalcal

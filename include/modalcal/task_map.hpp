@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
@@ -26,11 +27,11 @@ namespace modalcal {
 using TaskMap = std::function<std::vector<std::string>(size_t n, const std::function<std::string(size_t)>& work)>;
 
 /// The default TaskMap: each piece of work in index order, in this process.
-std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(size_t)>& work);
+MODALCAL_EXPORT std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(size_t)>& work);
 
 /// Numbers written to and read from a task's result text exactly (17 significant digits, NaN and
 /// infinities included), in the order they were written.
-class TaskCodec {
+class MODALCAL_EXPORT TaskCodec {
  public:
   void put(double value);
   void put(const std::string& text);  ///< any bytes; length-prefixed

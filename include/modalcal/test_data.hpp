@@ -27,13 +27,14 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/model.hpp"
 #include "modalcal/types.hpp"
 
 namespace modalcal {
 
 /// Dataset 151: who wrote the file and when. Empty strings for records a file leaves out.
-struct UffHeader {
+struct MODALCAL_EXPORT UffHeader {
   std::string model_name;
   std::string description;
   std::string database_program;  ///< program that created the model database
@@ -47,7 +48,7 @@ struct UffHeader {
 /// Dataset 164: the file's unit system. A factor is the number of file units in one SI unit
 /// (length: per metre, force: per newton, temperature: per kelvin), so
 /// \f$x_\mathrm{SI} = x_\mathrm{file} / \mathrm{factor}\f$ (millimetres: length factor 1000).
-struct UffUnits {
+struct MODALCAL_EXPORT UffUnits {
   int code = 1;                   ///< 1 SI, 2 BG, ..., 9 user defined (as written)
   std::string description;        ///< e.g. "SI - mks (Newton)"
   int temperature_mode = 0;       ///< 1 absolute, 2 relative, 0 not given
@@ -60,7 +61,7 @@ struct UffUnits {
 
 /// A coordinate system from dataset 18 or 2420, resolved into the global frame:
 /// \f$x_\mathrm{global} = o + A^T x_\mathrm{local}\f$, the rows of A being the local axes.
-struct CoordinateSystem {
+struct MODALCAL_EXPORT CoordinateSystem {
   int id = 0;
   std::string name;
   int type = 0;                  ///< 0 Cartesian, 1 cylindrical, 2 spherical (only 0 is usable)
@@ -71,7 +72,7 @@ struct CoordinateSystem {
 };
 
 /// A node of the test geometry (dataset 15 or 2411).
-struct TestNode {
+struct MODALCAL_EXPORT TestNode {
   long id = 0;
   Vec3 coordinates = Vec3::Zero();  ///< global frame (converted from its definition system)
   int definition_system = 0;        ///< the system the file gives the coordinates in
@@ -81,14 +82,14 @@ struct TestNode {
 };
 
 /// One shape value: a global component (0..2 translations x, y, z; 3..5 rotations) at a node.
-struct TestShapeValue {
+struct MODALCAL_EXPORT TestShapeValue {
   long node = 0;
   int component = 0;
   double value = 0;
 };
 
 /// A measured (or FE) mode.
-struct TestMode {
+struct MODALCAL_EXPORT TestMode {
   int number = 0;                       ///< mode number as written in the file
   double frequency_hz = 0;              ///< undamped natural frequency
   std::optional<double> damping_ratio;  ///< viscous damping ratio when the file gives one
@@ -106,7 +107,7 @@ struct TestMode {
 };
 
 /// One dataset of a universal file, as met: read, or skipped with the reason.
-struct UffDatasetEntry {
+struct MODALCAL_EXPORT UffDatasetEntry {
   int number = 0;
   int line = 0;  ///< of the dataset number
   bool read = false;
@@ -114,7 +115,7 @@ struct UffDatasetEntry {
 };
 
 /// Everything read from a test-data file.
-struct TestData {
+struct MODALCAL_EXPORT TestData {
   enum class Format { Uff, Csv };
   std::string path;
   Format format = Format::Uff;
@@ -143,22 +144,23 @@ struct TestData {
 ///         is malformed: a dataset without its closing "-1", a record with too few or too many
 ///         values, a non-numeric field, a reference to an unknown coordinate system, a
 ///         non-Cartesian system in use, a node defined twice.
-TestData read_uff(const std::string& path);
+MODALCAL_EXPORT TestData read_uff(const std::string& path);
 
 /// Reads the CSV form: a header line `mode,frequency_hz,node,direction,value`, then one row per
 /// value; direction is x, y, z, rx, ry or rz in the global frame; blank lines and lines starting
 /// with '#' are ignored. A CSV has no geometry, so its nodes can be mapped by id only.
 /// \throws ProblemError naming the file and line of a bad row.
-TestData read_test_csv(const std::string& path);
+MODALCAL_EXPORT TestData read_test_csv(const std::string& path);
 
 /// read_test_csv() for a path ending in ".csv" (any case), read_uff() otherwise.
-TestData read_test_data(const std::string& path);
+MODALCAL_EXPORT TestData read_test_data(const std::string& path);
 
 /// The CSV form of every mode's values (shortest round-trip number formatting).
-std::string test_data_to_csv(const TestData& data);
+MODALCAL_EXPORT std::string test_data_to_csv(const TestData& data);
 
 /// Writes test_data_to_csv() to `path` atomically, refusing to overwrite any of `inputs`.
-void write_test_csv(const TestData& data, const std::string& path, const std::vector<std::string>& inputs = {});
+MODALCAL_EXPORT void write_test_csv(const TestData& data, const std::string& path,
+                                    const std::vector<std::string>& inputs = {});
 
 /// Complex shape made real: the mode rotated by the phase θ that maximizes the norm of its
 /// real part, \f$\psi = \mathrm{Re}(e^{i\theta}\phi)\f$; with \f$\phi = a + ib\f$,
@@ -166,29 +168,30 @@ void write_test_csv(const TestData& data, const std::string& path, const std::ve
 /// of φ up to phase. The modal phase collinearity
 /// \f$\mathrm{MPC} = ((a^Ta - b^Tb)^2 + 4(a^Tb)^2)/(a^Ta + b^Tb)^2\f$ is 1 for a shape that is
 /// real up to a phase and 0 for a circular one; \f$\|\psi\|^2/\|\phi\|^2 = (1+\sqrt{MPC})/2\f$.
-struct RealShape {
+struct MODALCAL_EXPORT RealShape {
   Vector values;            ///< ψ
   double rotation_rad = 0;  ///< θ
   double collinearity = 1;  ///< MPC in [0, 1]
 };
 /// \param shape any length ≥ 1; an all-zero shape gives zeros with MPC 1.
-RealShape best_real_shape(const Eigen::VectorXcd& shape);
+MODALCAL_EXPORT RealShape best_real_shape(const Eigen::VectorXcd& shape);
 
 /// Metres per unit for "m", "cm", "mm", "in", "ft"; nullopt for anything else.
-std::optional<double> metres_per_length_unit(const std::string& unit);
+MODALCAL_EXPORT std::optional<double> metres_per_length_unit(const std::string& unit);
 
 /// Factor from the file's lengths to `unit` (a name metres_per_length_unit() knows), using the
 /// file's dataset 164; a file without one is taken to be in metres (SI, the universal-file
 /// default) and the assumption is added to *assumption if given.
 /// \throws std::invalid_argument for an unknown unit name.
-double length_factor_to(const TestData& data, const std::string& unit, std::string* assumption = nullptr);
+MODALCAL_EXPORT double length_factor_to(const TestData& data, const std::string& unit,
+                                        std::string* assumption = nullptr);
 
 /// Multiplies node coordinates, coordinate-system origins and translational shape values by
 /// `factor` (> 0; rotations are unchanged) and records it in TestData::length_scale.
-void scale_lengths(TestData* data, double factor);
+MODALCAL_EXPORT void scale_lengths(TestData* data, double factor);
 
 /// How the file's lengths become the model's: an explicit factor, or the model's length unit.
-struct LengthConversion {
+struct MODALCAL_EXPORT LengthConversion {
   std::string unit;  ///< the model's length unit (m, cm, mm, in, ft); empty: not given
   double scale = 0;  ///< > 0: model length = file length × scale (wins over `unit`)
 };
@@ -198,12 +201,13 @@ struct LengthConversion {
 /// the problem's free-text `problem_units` ("in, lbf, s" gives "in") if it names a known unit.
 /// Frequencies need no conversion: universal files and CSV give them in Hz, as problems do.
 /// \return what was done or assumed, for a report ("" when nothing was converted).
-std::string convert_lengths(TestData* data, const LengthConversion& conversion, const std::string& problem_units);
+MODALCAL_EXPORT std::string convert_lengths(TestData* data, const LengthConversion& conversion,
+                                            const std::string& problem_units);
 
 /// How test nodes find their model nodes.
 enum class NodeMatchBy { Id, Coordinates };
 
-struct NodeMapOptions {
+struct MODALCAL_EXPORT NodeMapOptions {
   NodeMatchBy by = NodeMatchBy::Id;  ///< default: same node id
   /// Coordinates: the largest accepted distance, in model units (> 0). Default (unset):
   /// 1e-6 × the diagonal of the model's bounding box, i.e. coincident nodes only.
@@ -213,7 +217,7 @@ struct NodeMapOptions {
 };
 
 /// The outcome for one test node.
-struct NodeMatch {
+struct MODALCAL_EXPORT NodeMatch {
   long test_node = 0;
   int model_node = -1;  ///< index into Model, -1 if unmatched
   double distance = 0;  ///< to the matched (or, if unmatched, nearest) model node;
@@ -221,7 +225,7 @@ struct NodeMatch {
   std::string reason;   ///< why it is unmatched
 };
 
-struct NodeMapping {
+struct MODALCAL_EXPORT NodeMapping {
   std::vector<NodeMatch> matches;  ///< one per test node, in TestData::node_ids() order
   NodeMatchBy by = NodeMatchBy::Id;
   double tolerance = 0;  ///< the distance used (coordinates)
@@ -234,6 +238,6 @@ struct NodeMapping {
 /// model node within the tolerance (coordinates in the model's units: see scale_lengths()).
 /// A model node claimed by two test nodes goes to the nearer one; the other is unmatched.
 /// \throws std::invalid_argument if `options` is invalid.
-NodeMapping map_test_nodes(const TestData& data, const Model& model, const NodeMapOptions& options);
+MODALCAL_EXPORT NodeMapping map_test_nodes(const TestData& data, const Model& model, const NodeMapOptions& options);
 
 }  // namespace modalcal

@@ -35,12 +35,13 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/reduced.hpp"
 
 namespace modalcal {
 
-struct UncertaintyOptions {
+struct MODALCAL_EXPORT UncertaintyOptions {
   /// Confidence level of the intervals. Range: (0, 1).
   double confidence = 0.95;
   /// Profile the parameters whose Laplace interval cannot be trusted (see above).
@@ -60,7 +61,7 @@ struct UncertaintyOptions {
 };
 
 /// One parameter's uncertainty (physical units unless said).
-struct ParameterUncertainty {
+struct MODALCAL_EXPORT ParameterUncertainty {
   std::string name;
   double value = 0;
   double standard_error = 0;         ///< delta method; +infinity when the data do not see it
@@ -77,7 +78,7 @@ struct ParameterUncertainty {
 };
 
 /// The uncertainty of a calibrated point: the summary of estimate_uncertainty().
-struct Uncertainty {
+struct MODALCAL_EXPORT Uncertainty {
   bool noise_stated = false;  ///< false: the noise was estimated from the residual
   double confidence = 0.95;
   int num_data = 0;
@@ -97,6 +98,7 @@ struct Uncertainty {
 /// The uncertainty of `p`, a calibration of `problem` with its own objective weights.
 /// \throws std::invalid_argument for invalid options or a wrong size; std::runtime_error if the
 ///   model cannot be evaluated at `p`.
-Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p, const UncertaintyOptions& options = {});
+MODALCAL_EXPORT Uncertainty estimate_uncertainty(const Problem& problem, const Vector& p,
+                                                 const UncertaintyOptions& options = {});
 
 }  // namespace modalcal

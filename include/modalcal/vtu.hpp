@@ -22,6 +22,7 @@
 
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
+#include "modalcal/export.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/types.hpp"
 
@@ -32,7 +33,7 @@ enum class VtkCellType : int { Vertex = 1, Tetra = 10, Hexahedron = 12, Quadrati
 
 /// A named data array: `values` holds `components` numbers per tuple (point, cell, or free for
 /// field data). `integer` arrays are written as Int64.
-struct VtkArray {
+struct MODALCAL_EXPORT VtkArray {
   std::string name;
   int components = 1;
   std::vector<double> values;
@@ -40,13 +41,13 @@ struct VtkArray {
 };
 
 /// A string array of the field data (VTK writes each string as character codes ending in 0).
-struct VtkStringArray {
+struct MODALCAL_EXPORT VtkStringArray {
   std::string name;
   std::vector<std::string> values;
 };
 
 /// An unstructured grid as the .vtu file stores it.
-struct VtkGrid {
+struct MODALCAL_EXPORT VtkGrid {
   Eigen::Matrix3Xd points;
   std::vector<long> connectivity;    ///< point indices of all cells, one after the other
   std::vector<VtkCellType> types;    ///< one per cell
@@ -59,20 +60,20 @@ struct VtkGrid {
 
 /// The .vtu document of `grid`.
 /// \throws std::invalid_argument if an array's size does not match its points or cells.
-std::string vtu_document(const VtkGrid& grid);
+MODALCAL_EXPORT std::string vtu_document(const VtkGrid& grid);
 
 /// A .pvd collection listing `files` (relative to the .pvd) as parts 0, 1, ...
-std::string pvd_document(const std::vector<std::string>& files);
+MODALCAL_EXPORT std::string pvd_document(const std::vector<std::string>& files);
 
 /// A free-DOF vector (a mode shape) to show as a nodal displacement field.
-struct ShapeField {
+struct MODALCAL_EXPORT ShapeField {
   std::string name;        ///< e.g. "mode_3_80.28Hz"
   double frequency_hz = 0;
   Vector shape;            ///< on the free DOFs of the system
 };
 
 /// What write_vtu_set puts on the model besides its blocks and properties.
-struct VtuFields {
+struct MODALCAL_EXPORT VtuFields {
   /// Point vectors (x, y, z translation of every node, rigidly coupled and fixed nodes
   /// included); their frequencies go to the field data `frequencies_hz`, their names to
   /// `shape_names`, in this order.
@@ -88,26 +89,28 @@ struct VtuFields {
 /// other pair), point data `node_id` (external id), field data `parameter_<name>` per
 /// calibration parameter, and `fields`.
 /// \throws std::invalid_argument if a field's size does not fit the model or system.
-VtkGrid model_grid(const Problem& problem, const ParametricSystem& system, const Vector& p, const VtuFields& fields);
+MODALCAL_EXPORT VtkGrid model_grid(const Problem& problem, const ParametricSystem& system, const Vector& p,
+                                   const VtuFields& fields);
 
 /// The sensor points as VTK_VERTEX cells, one per sensed node, with point data `node_id` and
 /// each measured shape as a 3-vector (unmeasured directions 0) named
 /// `measured_<i>_<f>Hz`, and `measured_directions` (the number of directions sensed at the node).
-VtkGrid sensor_grid(const Problem& problem);
+MODALCAL_EXPORT VtkGrid sensor_grid(const Problem& problem);
 
 /// Writes `<stem>.vtu` (model_grid), `<stem>_sensors.vtu` (sensor_grid, when the problem has
 /// sensors) and `<stem>.pvd` listing them into `directory` (created if missing), each
 /// atomically; refuses to overwrite the problem file. Returns the paths written.
 /// \throws std::invalid_argument for a file that is an input, std::runtime_error if one cannot
 ///         be written.
-std::vector<std::string> write_vtu_set(const std::string& directory, const std::string& stem, const Problem& problem,
-                                       const ParametricSystem& system, const Vector& p, const VtuFields& fields);
+MODALCAL_EXPORT std::vector<std::string> write_vtu_set(const std::string& directory, const std::string& stem,
+                                                       const Problem& problem, const ParametricSystem& system,
+                                                       const Vector& p, const VtuFields& fields);
 
 /// Appends the first `count` elastic modes of `modal` (all if count < 0) as shape fields named
 /// shape_field_name("mode", k, f).
-void add_mode_fields(const ModalResult& modal, int count, VtuFields* fields);
+MODALCAL_EXPORT void add_mode_fields(const ModalResult& modal, int count, VtuFields* fields);
 
 /// Name of a shape field: `<prefix>_<index>_<frequency with 2 decimals>Hz`, e.g. "mode_3_80.28Hz".
-std::string shape_field_name(const std::string& prefix, int index, double frequency_hz);
+MODALCAL_EXPORT std::string shape_field_name(const std::string& prefix, int index, double frequency_hz);
 
 }  // namespace modalcal

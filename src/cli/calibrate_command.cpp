@@ -17,7 +17,7 @@
 #include "modalcal/effects.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/vtu.hpp"
@@ -277,7 +277,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
 }
 
 int run_calibrate(const CalibrateArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   if (!args.uncertainty_plot.empty()) {  // refused before the run, like --vtu
     const std::string extension = std::filesystem::path(args.uncertainty_plot).extension().string();

@@ -7,7 +7,7 @@
 
 #include "cli/cli_common.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 
 namespace modalcal::cli {
 

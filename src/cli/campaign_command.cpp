@@ -18,7 +18,7 @@
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/residual_test.hpp"
 #include "modalcal/uncertainty.hpp"
@@ -65,7 +65,7 @@ Problem problem_with_data(const std::string& problem, const std::string& data, c
   const fs::path file = folder / ("data-" + std::to_string(k) + ".yaml");
   std::ofstream(file) << "extends: " << fs::absolute(problem).string() << "\nmeasured: {file: "
                       << fs::absolute(data).string() << "}\n";
-  return load_problem(file.string());
+  return load_problem_with_measurements(file.string());
 }
 
 /// One data set's calibration, as its entry in the JSON's `runs`: ok with the parameters' values
@@ -256,7 +256,7 @@ void plot_runs(const std::string& path, const Problem& problem, const std::vecto
 
 int run_campaign(const CampaignArgs& args) {
   WorkFarm& farm = WorkFarm::join();  // first: in an MPI job only rank 0 writes to the standard output
-  const Problem problem = load_problem(args.problem);
+  const Problem problem = load_problem_with_measurements(args.problem);
   require_parameters(problem);
   if (args.data.empty() && args.merge.empty())
     throw InputError("campaign: no measured data sets to calibrate (or --merge the JSON of earlier parts)");

@@ -27,7 +27,7 @@ struct CheckArgs {
 };
 
 int run_check(const CheckArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   const Vector p = choose_parameters(&problem, args.params);
   Objective objective(problem);

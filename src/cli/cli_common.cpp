@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "modalcal/output.hpp"
+#include "modalcal/synthesis.hpp"
 
 namespace modalcal::cli {
 
@@ -57,6 +58,12 @@ Vector from_report(const Problem& problem, const std::string& path) {
 }
 
 }  // namespace
+
+Problem load_problem_with_measurements(const std::string& path, const LoadOptions& options) {
+  Problem problem = load_problem(path, options);
+  synthesize_measured(&problem);
+  return problem;
+}
 
 Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
   Vector p;

@@ -9,6 +9,7 @@
 
 #include "modalcal/localization.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/vtu.hpp"
 
@@ -18,6 +19,10 @@ namespace modalcal::cli {
 struct InputError : std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
+
+/// The problem file at `path` with its measured modes: load_problem(), then synthesize_measured()
+/// for a `measured: synthetic:` section.
+Problem load_problem_with_measurements(const std::string& path, const LoadOptions& options = {});
 
 struct ParameterChoice {
   std::string source = "initial";        ///< initial | truth | path of a report JSON

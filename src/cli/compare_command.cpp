@@ -13,7 +13,7 @@
 #include "cli/commands.hpp"
 #include "modalcal/comparison.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
@@ -204,7 +204,7 @@ void plot_comparison(const Problem& problem, const ModalComparison& c, const Com
 }
 
 int run_compare(const CompareArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   const Vector p = choose_parameters(&problem, args.params);
   ComparisonOptions options;
   options.unpaired_mac = args.unpaired_mac;

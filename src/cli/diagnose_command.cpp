@@ -15,7 +15,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/problem_file.hpp"
 
 namespace modalcal::cli {
@@ -386,7 +386,7 @@ std::optional<Problem> finer_mesh_problem(const DiagnoseArgs& args, const Proble
       LoadOptions load;
       load.refinement = problem.mesh_refinement * args.mesh_check;
       load.nearest_sensor_nodes = true;
-      return load_problem(args.problem, load);
+      return load_problem_with_measurements(args.problem, load);
     } catch (const ProblemError& e) {  // e.g. sensors on a node set, which has more nodes there
       std::printf("no discretization estimate: on a mesh %g times finer the problem does not load: %s\n",
                   args.mesh_check, e.what());
@@ -434,7 +434,7 @@ void report_diagnosis(const DiagnoseArgs& args, const Problem& problem, const Di
 
 int run_diagnose(const DiagnoseArgs& args) {
   WorkFarm& farm = WorkFarm::join();  // in an MPI job every rank runs the diagnosis; the refits are shared
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   require_parameters(problem);
   print_warnings(problem);

@@ -23,7 +23,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
 #include "support/random_draws.hpp"
@@ -360,7 +360,7 @@ nlohmann::json summarize(const FullVsReducedArgs& args, const Problem& problem,
 
 int run_full_vs_reduced(const FullVsReducedArgs& args) {
   const WorkFarm& farm = WorkFarm::join();  // in an MPI job, the runs are shared among the ranks
-  const Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  const Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   if (!problem.has_truth())
     throw InputError(problem.path + ": full-vs-reduced needs a truth value for every parameter (a synthetic problem)");

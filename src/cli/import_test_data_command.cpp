@@ -85,7 +85,7 @@ int run_import(const ImportArgs& args) {
   std::vector<std::string> inputs{args.file};
   std::string conversion;
   if (!args.problem.empty()) {
-    const Problem problem = load_problem(args.problem);
+    const Problem problem = load_problem_with_measurements(args.problem);
     inputs.insert(inputs.end(), problem.source_files.begin(), problem.source_files.end());
     print_warnings(problem);
     conversion = convert_lengths(&data, args.lengths, problem.units);

@@ -58,7 +58,7 @@ nlohmann::json to_json(const Problem& problem, const Vector& p, const Localizati
 }
 
 int run_localize(const LocalizeArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   const Vector p = choose_parameters(&problem, args.params);
   std::string error;

@@ -85,7 +85,7 @@ nlohmann::json modes_json(const ModesArgs& args, const Problem& problem, const P
 }
 
 int run_modes(const ModesArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   print_warnings(problem);
   const Vector p = choose_parameters(&problem, args.params);

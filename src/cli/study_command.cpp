@@ -18,7 +18,7 @@
 #include "cli/work_farm.hpp"
 #include "modalcal/identifiability.hpp"
 #include "modalcal/output.hpp"
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/reduced.hpp"
 #include "modalcal/problem_file.hpp"
 
@@ -41,7 +41,7 @@ std::string output_path(const StudyArgs& args, const std::string& name) {
 }
 
 int run_bounds_scaling(const StudyArgs& args) {
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   create_output_directory("--out", args.out);
   struct Case {
@@ -134,7 +134,7 @@ nlohmann::json calibrate_from(const StudyArgs& args, const Problem& problem, dou
 
 int run_starts(const StudyArgs& args) {
   WorkFarm& farm = WorkFarm::join();  // in an MPI job, the starts are shared among the ranks
-  Problem problem = load_problem(args.problem, LoadOptions{args.refine});
+  Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   require_parameters(problem);
   const int n = static_cast<int>(problem.parameters.size());
   std::printf("%s: calibrations from the problem's start times", problem.path.c_str());

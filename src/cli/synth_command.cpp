@@ -66,7 +66,7 @@ std::vector<Sensor> sensors_on(const Model& model, const std::string& set_name) 
 
 int run_synth(const SynthArgs& args) {
   const LoadOptions load{args.refine};
-  const Problem nominal = load_problem(args.problem, load);
+  const Problem nominal = load_problem_with_measurements(args.problem, load);
   // Each --truth is a problem file, a changes file or a change string.
   std::optional<Problem> truth_file;
   std::vector<ModelChange> changes;
@@ -83,7 +83,7 @@ int run_synth(const SynthArgs& args) {
       changes.insert(changes.end(), listed->begin(), listed->end());
     } else {
       if (truth_file) throw InputError("--truth " + t + ": a second truth problem file (" + truth_file->path + " is the first)");
-      truth_file = load_problem(t, load);
+      truth_file = load_problem_with_measurements(t, load);
       inputs.insert(inputs.end(), truth_file->source_files.begin(), truth_file->source_files.end());
     }
   }

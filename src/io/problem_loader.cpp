@@ -24,7 +24,6 @@
 #include "io/box_mesh.hpp"
 #include "io/input_file.hpp"
 #include "io/measured_test_data.hpp"
-#include "io/synthetic.hpp"
 #include "support/text_util.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/mesh_file.hpp"
@@ -1455,7 +1454,6 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
   problem.source_files.push_back(path);
   for (const auto& [base, base_path] : bases) problem.source_files.push_back(base_path);
   Loader(path, options, problem).load(root, bases);
-  if (problem.synthetic && options.synthesize) detail::synthesize_measured(&problem, *problem.synthetic);
   return problem;
 }
 

@@ -83,7 +83,10 @@ Objective::Objective(const Problem& problem, ObjectiveOptions options)
   std::string error;
   if (!options_.IsValid(&error)) throw std::invalid_argument("ObjectiveOptions: " + error);
   if (problem.measured.empty())
-    throw std::invalid_argument(problem.path + ": no measured modes to calibrate against");
+    throw std::invalid_argument(problem.path + ": no measured modes to calibrate against" +
+                                (problem.synthetic ? std::string(" (its synthetic modes are computed by "
+                                                                 "synthesize_measured(), modalcal/synthesis.hpp)")
+                                                   : std::string()));
   if (options_.eigenvalues_in_frequency_order)
     for (size_t i = 0; i < problem.measured.size(); ++i)
       if (problem.measured[i].has_shape_term())

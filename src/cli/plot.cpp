@@ -1,4 +1,4 @@
-#include "io/plot.hpp"
+#include "cli/plot.hpp"
 
 #include <algorithm>
 #include <cmath>
