@@ -9,6 +9,7 @@
 #include <Eigen/LU>
 
 #include "fullspace/box_qp.hpp"
+#include "fullspace/fullspace_driver.hpp"
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/ipopt/ipopt_run.hpp"
 #include "modalcal/fullspace.hpp"
@@ -307,6 +308,120 @@ TEST(FullSpace, ConvergenceOrderIsEstimatedAboveTheRoundingFloor) {
   // A stalled step before the Newton step says nothing about the order: the triple before counts.
   EXPECT_TRUE(std::isnan(estimate_convergence_order({1e-2, 0.99e-2, 1e-8, 1e-15, 2e-15})));
   EXPECT_NEAR(estimate_convergence_order({1e-1, 1e-2, 1e-4, 0.99e-4, 1e-12, 1e-15}), 2.0, 1e-9);
+}
+
+// The driver's steps on their own (fullspace/fullspace_driver.hpp).
+
+// Step 1: from 1.3x the truth (one basin), the globalization lowers J and stops on its gradient
+// criterion, not on its iteration cap.
+TEST(FullSpaceDriver, GlobalizationLowersTheObjectiveAndStopsOnItsGradientCriterion) {
+  const Problem problem = Identifiable();
+  const Vector start = problem.truth_values() * 1.3;
+  Objective objective(problem);
+  const FullSpaceOptions options;
+  detail::FullSpaceDriver driver(objective, start, options);
+  const Vector globalized = driver.globalize_from_start(start);
+  const double before = objective.evaluate(start).value, after = objective.evaluate(globalized).value;
+  EXPECT_LT(after, 1e-2 * before) << before << " -> " << after;
+  EXPECT_GT(driver.summary().globalization_iterations, 0);
+  EXPECT_LT(driver.summary().globalization_iterations, 2 * options.globalization_iterations);
+}
+
+// Step 2: the Newton start is the forward solution at p: the constraints hold to the eigen-solver's
+// accuracy, the parameters are p.
+TEST(FullSpaceDriver, NewtonStartIsTheForwardSolutionAndMeetsTheConstraints) {
+  const Problem problem = Identifiable();
+  const Vector p = problem.truth_values() * 1.1;
+  Objective objective(problem);
+  const FullSpaceOptions options;
+  detail::FullSpaceDriver driver(objective, p, options);
+  driver.set_up_newton(p);
+  Vector x0, y0;
+  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
+  detail::FullSpaceProblem& fp = driver.fullspace_problem();
+  Vector c(fp.num_constraints());
+  fp.constraints(x0.data(), c.data());
+  EXPECT_LT(c.lpNorm<Eigen::Infinity>(), 1e-8);
+  EXPECT_LT(MaxRelativeError(fp.parameters(x0.data()), p), 1e-12);
+  EXPECT_EQ(y0.size(), fp.num_constraints());
+}
+
+// Step 3: the guard is skipped where the iterate has not moved and meets its constraints, runs
+// otherwise, and fires where a u_i has left its mode (two modes swapped).
+TEST(FullSpaceDriver, TheGuardSkipsWhereNothingMovedAndFiresWhereAModeWasSwapped) {
+  const Problem problem = Identifiable();
+  const Vector p = problem.truth_values() * 1.1;
+  Objective objective(problem);
+  FullSpaceOptions options;
+  detail::FullSpaceDriver driver(objective, p, options);
+  driver.set_up_newton(p);
+  Vector x0, y0;
+  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
+  const detail::FullSpaceProblem& fp = driver.fullspace_problem();
+
+  detail::FullSpaceDriver::Guard guard{p, p, false, 0};
+  detail::NewtonCallback callback = driver.guarded(&guard);
+  EXPECT_TRUE(callback(detail::NewtonIteration::at(0, 0.0, 1e-12, 1e-12, 0, 0), x0.data()));
+  ASSERT_EQ(driver.summary().kkt_history.size(), 1u);
+  EXPECT_TRUE(std::isnan(driver.summary().kkt_history.back().min_mac)) << "the start needs no guard";
+
+  // The same point with a large constraint violation is guarded, and passes.
+  EXPECT_TRUE(callback(detail::NewtonIteration::at(1, 0.0, 1.0, 1e-12, 1, 0), x0.data()));
+  EXPECT_GT(driver.summary().kkt_history.back().min_mac, 0.99);
+  EXPECT_FALSE(guard.fired);
+
+  Matrix U;
+  Vector lambda, q;
+  fp.unpack(x0.data(), &U, &lambda, &q);
+  U.col(0).swap(U.col(1));
+  const Vector swapped = fp.pack(U, lambda, q);
+  EXPECT_FALSE(callback(detail::NewtonIteration::at(2, 0.0, 1.0, 1e-12, 1, 0), swapped.data()));
+  EXPECT_TRUE(guard.fired);
+  EXPECT_LT(driver.summary().kkt_history.back().min_mac, options.guard_mac);
+}
+
+// Step 4: the final check calls "wrong modes" an end point that the Newton solver called
+// converged but whose u_i are not the paired modes, and "converged" the forward solution.
+TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {
+  const Problem problem = Identifiable();
+  const Vector p = problem.truth_values() * 1.1;
+  Objective objective(problem);
+  const FullSpaceOptions options;
+  detail::FullSpaceDriver driver(objective, p, options);
+  driver.set_up_newton(p);
+  detail::NewtonPhaseResult run;
+  ASSERT_FALSE(driver.newton_start(p, &run.x, &run.y).has_value());
+  run.solved = true;
+  run.status = "Solve_Succeeded";
+  EXPECT_EQ(driver.verify(run, true, 0).status, FullSpaceStatus::Converged);
+
+  const detail::FullSpaceProblem& fp = driver.fullspace_problem();
+  Matrix U;
+  Vector lambda, q;
+  fp.unpack(run.x.data(), &U, &lambda, &q);
+  U.col(0).swap(U.col(1));
+  run.x = fp.pack(U, lambda, q);
+  const detail::FullSpaceDriver::Outcome outcome = driver.verify(run, true, 0);
+  EXPECT_EQ(outcome.status, FullSpaceStatus::WrongModes);
+  EXPECT_NE(outcome.message.find("measured mode"), std::string::npos) << outcome.message;
+}
+
+// Step 5: without crossed pairs there is nothing to escape from.
+TEST(FullSpaceDriver, NoEscapeWhereNoPairsCross) {
+  const Problem problem = Identifiable();
+  const Vector p = problem.truth_values();
+  Objective objective(problem);
+  const FullSpaceOptions options;
+  detail::FullSpaceDriver driver(objective, p, options);
+  driver.set_up_newton(p);
+  detail::NewtonPhaseResult run;
+  ASSERT_FALSE(driver.newton_start(p, &run.x, &run.y).has_value());
+  run.solved = true;
+  const detail::FullSpaceDriver::Outcome converged = driver.verify(run, true, 0);
+  ASSERT_EQ(converged.status, FullSpaceStatus::Converged);
+  const detail::FullSpaceDriver::Outcome after = driver.escape_crossings(converged);
+  EXPECT_EQ(after.status, FullSpaceStatus::Converged);
+  EXPECT_TRUE(driver.summary().crossing_escapes.empty());
 }
 
 TEST(BoxQp, SatisfiesTheOptimalityConditionsOfRandomConvexProblems) {

@@ -29,7 +29,8 @@
 ///      multipliers from the adjoint (\f$y_i = w_i\f$, \f$z_i = 2\eta_i\f$, scaled), warm started
 ///      with a small barrier parameter;
 ///   3. guards every iteration: a forward solve at the current p, paired as the reduced
-///      objective pairs, must have M-weighted MAC >= `guard_mac` with each \f$u_i\f$; if not,
+///      objective pairs, must have M-weighted MAC >= `guard_mac` with each \f$u_i\f$ (skipped
+///      where the iterate has hardly moved from the last guarded point, `guard_step`); if not,
 ///      Newton is stopped, the Newton direction in q is kept but the modes are not: a backtracking
 ///      search on the reduced objective along the segment from the last guarded point to the
 ///      current p picks the restart point (reduced L-BFGS if no point on it decreases J), and
@@ -118,6 +119,14 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   bool mode_guard = true;
   /// M-weighted MAC below which the guard declares u_i to have left its mode. Range: (0, 1).
   double guard_mac = 0.8;
+  /// The guard's forward solve is skipped at an iterate whose scaled parameters q are within
+  /// `guard_step` (max norm) of the last guarded point's and whose constraints are met to
+  /// `guard_step` (scaled rows): there every u_i is nearly an eigenvector of K(p), M(p) at
+  /// parameters the last forward solve saw, so no mode can have traded places. This skips the
+  /// guard at the Newton start (the start is a forward solution) and in the last, quadratically
+  /// convergent iterations; the final check (`verify_mac`) still solves. 0 guards every
+  /// iteration. Range: [0, 0.1].
+  double guard_step = 1e-3;
   /// Restarts after the guard fires. Range: >= 0.
   int max_restarts = 10;
   /// Escapes from a minimum where paired modes cross: when the Newton phase converged where two

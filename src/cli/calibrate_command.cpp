@@ -116,9 +116,11 @@ void print_iteration(const IterationRecord& r) {
 }
 
 void print_kkt(const KktRecord& r) {
-  std::fprintf(stderr, "  newton %3d  J = %.6e  inf_pr %.2e  inf_du %.2e  compl %.2e  alpha %.2g  shift %.1e  guard MAC %.4f%s\n",
+  char guard[32] = "guard skipped";  // FullSpaceOptions::guard_step
+  if (!std::isnan(r.min_mac)) std::snprintf(guard, sizeof guard, "guard MAC %.4f", r.min_mac);
+  std::fprintf(stderr, "  newton %3d  J = %.6e  inf_pr %.2e  inf_du %.2e  compl %.2e  alpha %.2g  shift %.1e  %s%s\n",
                r.iteration, r.objective, r.primal_infeasibility, r.dual_infeasibility, r.complementarity, r.step_length,
-               r.hessian_shift, r.min_mac,
+               r.hessian_shift, guard,
                std::isnan(r.parameter_error) ? "" : ("  param err " + std::to_string(r.parameter_error)).c_str());
 }
 

@@ -43,6 +43,8 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
   if (!(globalization_reduction > 0 && globalization_reduction <= 1))
     return bad("globalization_reduction = " + std::to_string(globalization_reduction) + ": must be in (0, 1]");
   if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + std::to_string(guard_mac) + ": must be in (0, 1)");
+  if (!(guard_step >= 0 && guard_step <= 0.1))
+    return bad("guard_step = " + std::to_string(guard_step) + ": must be in [0, 0.1]");
   if (max_restarts < 0) return bad("max_restarts = " + std::to_string(max_restarts) + ": must be >= 0");
   if (max_crossing_escapes < 0)
     return bad("max_crossing_escapes = " + std::to_string(max_crossing_escapes) + ": must be >= 0");

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "fullspace/block_newton.hpp"
+#include "fullspace/fullspace_driver.hpp"
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/ipopt/ipopt_run.hpp"
 #include "modalcal/fullspace.hpp"
@@ -110,53 +111,10 @@ ModeCheck check_modes(Objective& objective, detail::FullSpaceProblem& fp, const 
   return check;
 }
 
-/// The driver of minimize_fullspace, one method per step of fullspace.hpp's list: the objectives it
-/// minimizes (the problem's, the globalization's misfit, the eigenvalue terms alone, the crossing
-/// escape's), the full-space problem, and the summary it fills as it goes.
-class FullSpaceDriver {
- public:
-  FullSpaceDriver(Objective& objective, const Vector& p0, const FullSpaceOptions& options);
-  FullSpaceSummary run();
 
- private:
-  struct Outcome {
-    FullSpaceStatus status = FullSpaceStatus::Failed;
-    std::string message;
-    Evaluation forward;  // at the final parameters (when the Newton phase ended normally)
-  };
-  /// One Newton attempt's guard: where the iterate last had its modes and where it lost them.
-  struct Guard {
-    Vector last_good, fired_at;
-    bool fired = false;
-    int offset = 0;  // Newton iterations before this attempt
-  };
+}  // namespace
 
-  Objective& global_objective() { return misfit_objective_ ? *misfit_objective_ : objective_; }
-  const Problem& eigenvalue_terms();
-  FullSpaceSummary finish(FullSpaceStatus status, const std::string& message);
-  Vector globalize_on(Objective& on, const Vector& from, int iterations);
-  Vector globalize(const Vector& from, int iterations) { return globalize_on(global_objective(), from, iterations); }
-  Vector backtrack(const Vector& from, const Vector& to);
-  Outcome solve_from(Vector p);
-  std::optional<std::string> newton_start(const Vector& p, Vector* x0, Vector* y0);
-  detail::NewtonCallback guarded(Guard* guard);
-  detail::NewtonPhaseOptions newton_options() const;
-  Outcome verify(const detail::NewtonPhaseResult& run, bool converged, size_t attempt_start);
-  Outcome escape_crossings(Outcome outcome);
-
-  Objective& objective_;
-  const FullSpaceOptions& options_;
-  const Problem& problem_;
-  const Clock::time_point start_;
-  const int forward_solves_before_;
-  const std::optional<Vector> truth_;
-  const bool weighted_shapes_, weighted_eigenvalues_;
-  FullSpaceSummary summary_;
-  std::unique_ptr<Objective> misfit_objective_, eigenvalue_objective_, escape_objective_;
-  std::unique_ptr<Problem> eigenvalue_problem_;
-  std::optional<ParameterScaling> scaling_;
-  std::unique_ptr<detail::FullSpaceProblem> fp_;
-};
+namespace detail {
 
 FullSpaceDriver::FullSpaceDriver(Objective& objective, const Vector& p0, const FullSpaceOptions& options)
     : objective_(objective),
@@ -216,20 +174,30 @@ FullSpaceSummary FullSpaceDriver::run() {
     summary_.mode_check.reason = "not checked: no iteration";
     return finish(FullSpaceStatus::MaxIterations, "max_iterations = 0: the start evaluated, no iteration made");
   }
-  // 1. Globalization: reduced L-BFGS always tracks the paired modes.
-  Vector globalized = start_point;
-  if (eigenvalue_objective_)
-    globalized = globalize_on(*eigenvalue_objective_, globalized, options_.globalization_iterations);
-  if (options_.globalization_iterations > 0) globalized = globalize(globalized, options_.globalization_iterations);
-  scaling_.emplace(options_.scaling ? ParameterScaling(problem_.parameters, *options_.scaling)
-                                    : ParameterScaling(problem_.parameters));
-  fp_ = std::make_unique<detail::FullSpaceProblem>(objective_, *scaling_, globalized);
-  summary_.num_unknowns = fp_->num_variables();
-  summary_.num_constraints = fp_->num_constraints();
-  summary_.newton_solver = to_string(options_.newton_solver);
+  const Vector globalized = globalize_from_start(start_point);
+  set_up_newton(globalized);
   // 2-4. Newton to convergence (guarded, restarted), checked; 5. the crossing escape.
   const Outcome outcome = escape_crossings(solve_from(globalized));
   return finish(outcome.status, outcome.message);
+}
+
+// 1. Globalization: reduced L-BFGS always tracks the paired modes; the eigenvalue terms first.
+Vector FullSpaceDriver::globalize_from_start(const Vector& start) {
+  Vector globalized = start;
+  if (eigenvalue_objective_)
+    globalized = globalize_on(*eigenvalue_objective_, globalized, options_.globalization_iterations);
+  if (options_.globalization_iterations > 0) globalized = globalize(globalized, options_.globalization_iterations);
+  return globalized;
+}
+
+// The Newton phase's variables and scaling, at the parameters it will start from.
+void FullSpaceDriver::set_up_newton(const Vector& p) {
+  scaling_.emplace(options_.scaling ? ParameterScaling(problem_.parameters, *options_.scaling)
+                                    : ParameterScaling(problem_.parameters));
+  fp_ = std::make_unique<detail::FullSpaceProblem>(objective_, *scaling_, p);
+  summary_.num_unknowns = fp_->num_variables();
+  summary_.num_constraints = fp_->num_constraints();
+  summary_.newton_solver = to_string(options_.newton_solver);
 }
 
 Vector FullSpaceDriver::globalize_on(Objective& on, const Vector& from, int iterations) {
@@ -264,7 +232,7 @@ Vector FullSpaceDriver::backtrack(const Vector& from, const Vector& to) {
 // multipliers from the adjoint. The reason when the forward solve fails.
 std::optional<std::string> FullSpaceDriver::newton_start(const Vector& p, Vector* x0, Vector* y0) {
   const detail::FullSpaceProblem& fp = *fp_;
-  const Evaluation e = objective_.evaluate(p, Need::Gradient);
+  const Evaluation& e = forward_at(p, Need::Gradient);
   if (!e.ok) return "start of the Newton phase: " + e.message;
   Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
   Vector lambda(fp.num_modes()), eta(fp.num_modes());
@@ -284,7 +252,7 @@ std::optional<std::string> FullSpaceDriver::newton_start(const Vector& p, Vector
 
 // 3. Each Newton iteration recorded and guarded: a forward solve at its p whose paired modes must
 // have M-weighted MAC >= guard_mac with the iterate's; the phase stops when they do not.
-detail::NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
+NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
   return [this, guard](const detail::NewtonIteration& info, const double* x) {
     detail::FullSpaceProblem& fp = *fp_;  // mass_matrix caches M at x
     KktRecord record;
@@ -298,9 +266,9 @@ detail::NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
     record.hessian_shift = info.hessian_shift;
     record.p = fp.parameters(x);
     record.parameter_error = parameter_error(truth_, record.p);
-    if (options_.mode_guard) {
+    if (options_.mode_guard && guard_needed(*guard, record)) {
       const Clock::time_point guard_start = Clock::now();
-      const Evaluation forward = objective_.evaluate(record.p, Need::Value);
+      const Evaluation& forward = forward_at(record.p, Need::Value);
       double min_mac = 0;
       if (forward.ok) {
         const SparseMatrix& M = fp.mass_matrix(x);
@@ -325,7 +293,26 @@ detail::NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
   };
 }
 
-detail::NewtonPhaseOptions FullSpaceDriver::newton_options() const {
+// FullSpaceOptions::guard_step: a guard is needed unless the iterate is within guard_step of the
+// last guarded point in q and meets its constraints to guard_step.
+bool FullSpaceDriver::guard_needed(const Guard& guard, const KktRecord& record) const {
+  const double step = (scaling_->to_scaled(record.p) - scaling_->to_scaled(guard.last_good)).lpNorm<Eigen::Infinity>();
+  return !(step <= options_.guard_step && record.primal_infeasibility <= options_.guard_step);
+}
+
+// The objective at p, evaluated again only when the last call was elsewhere or needed less: the
+// Newton start and its first guard, the last guard and the final check, see the same point.
+const Evaluation& FullSpaceDriver::forward_at(const Vector& p, Need need) {
+  const bool same = last_forward_p_.size() == p.size() && last_forward_p_ == p && last_forward_need_ >= need;
+  if (!same) {
+    last_forward_ = objective_.evaluate(p, need);
+    last_forward_p_ = p;
+    last_forward_need_ = need;
+  }
+  return last_forward_;
+}
+
+NewtonPhaseOptions FullSpaceDriver::newton_options() const {
   detail::NewtonPhaseOptions newton;
   newton.max_iterations = std::max(1, options_.max_iterations - summary_.iterations);
   newton.tolerance = options_.tolerance;
@@ -387,7 +374,7 @@ FullSpaceDriver::Outcome FullSpaceDriver::verify(const detail::NewtonPhaseResult
   Vector lambda;
   fp.unpack(run.x.data(), &U, &lambda, &summary_.final);
   Outcome outcome;
-  outcome.forward = objective_.evaluate(summary_.final, Need::Value);
+  outcome.forward = forward_at(summary_.final, Need::Value);
   const Evaluation& final_forward = outcome.forward;
   summary_.mode_check = check_modes(objective_, *fp_, run.x, final_forward, options_);
   summary_.final_objective = final_forward.ok ? final_forward.value : NAN;
@@ -447,7 +434,7 @@ FullSpaceDriver::Outcome FullSpaceDriver::escape_crossings(Outcome outcome) {
   return outcome;
 }
 
-}  // namespace
+}  // namespace detail
 
 FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, const FullSpaceOptions& options) {
   std::string error;
@@ -457,7 +444,7 @@ FullSpaceSummary minimize_fullspace(Objective& objective, const Vector& p0, cons
     throw std::invalid_argument(
         "minimize_fullspace: the objective's eigenvalue_misfit must be Relative (the full-space constraints carry "
         "the relative misfit); FullSpaceOptions::globalization_misfit chooses the globalization's");
-  return FullSpaceDriver(objective, p0, options).run();
+  return detail::FullSpaceDriver(objective, p0, options).run();
 }
 
 }  // namespace modalcal
