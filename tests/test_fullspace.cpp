@@ -380,6 +380,39 @@ TEST(FullSpaceDriver, TheGuardSkipsWhereNothingMovedAndFiresWhereAModeWasSwapped
   EXPECT_LT(driver.summary().kkt_history.back().min_mac, options.guard_mac);
 }
 
+// Step 3 also stops an attempt at the rounding floor of its constraints: converged gradient,
+// constraint violation just above the tolerance, and a full step that no longer squares it.
+TEST(FullSpaceDriver, AnAttemptStopsAtTheRoundingFloorButNotWhileNewtonStillConverges) {
+  const Problem problem = Identifiable();
+  const Vector p = problem.truth_values();
+  Objective objective(problem);
+  const FullSpaceOptions options;  // tolerance 1e-10
+  detail::FullSpaceDriver driver(objective, p, options);
+  driver.set_up_newton(p);
+  Vector x0, y0;
+  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
+  auto iteration = [](int k, double primal) { return detail::NewtonIteration::at(k, 0.0, primal, 1e-16, 1, 0); };
+
+  detail::FullSpaceDriver::Guard converging{p, p, false, 0};
+  detail::NewtonCallback callback = driver.guarded(&converging);
+  EXPECT_TRUE(callback(iteration(0, 1e-4), x0.data()));
+  EXPECT_TRUE(callback(iteration(1, 1e-8), x0.data()));  // squared: Newton goes on
+  EXPECT_FALSE(converging.at_floor);
+
+  detail::FullSpaceDriver::Guard stalled{p, p, false, 0};
+  callback = driver.guarded(&stalled);
+  EXPECT_TRUE(callback(iteration(0, 4.0e-10), x0.data()));
+  EXPECT_FALSE(callback(iteration(1, 1.3e-10), x0.data()));  // cut 3-fold: the floor
+  EXPECT_TRUE(stalled.at_floor);
+  EXPECT_FALSE(stalled.fired);
+
+  detail::FullSpaceDriver::Guard far{p, p, false, 0};
+  callback = driver.guarded(&far);
+  EXPECT_TRUE(callback(iteration(0, 4.0e-6), x0.data()));
+  EXPECT_TRUE(callback(iteration(1, 3.0e-6), x0.data()));  // slow, but far above the tolerance
+  EXPECT_FALSE(far.at_floor);
+}
+
 // Step 4: the final check calls "wrong modes" an end point that the Newton solver called
 // converged but whose u_i are not the paired modes, and "converged" the forward solution.
 TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {

@@ -68,7 +68,11 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   int max_iterations = 200;
   /// KKT error (primal and dual infeasibility, complementarity) at which the Newton phase stops:
   /// Ipopt's `tol` and its unscaled constr_viol/dual_inf/compl_inf tolerances; for the block
-  /// solver max(|c|_inf, |projected grad L|_inf). Range: (0, 1).
+  /// solver max(|c|_inf, |projected grad L|_inf). The phase also stops, converged, at the
+  /// rounding floor of its constraints: gradient and complementarity below the tolerance, the
+  /// constraint violation under 100 x tolerance, and a full Newton step that cut it less than
+  /// 4-fold (large models, whose per-mode solves cannot meet 1e-10; newton_status
+  /// Stopped_At_Rounding_Floor). Range: (0, 1).
   double tolerance = 1e-10;
   /// Barrier parameter Ipopt starts from (warm start; Ipopt only). Range: > 0.
   double mu_init = 1e-9;
@@ -220,7 +224,7 @@ struct MODALCAL_EXPORT FullSpaceSummary {
   int structured_factorizations = 0, mumps_factorizations = 0;
   /// Status of the Newton phase's last attempt: Ipopt's return status (e.g. Solve_Succeeded), or
   /// the block solver's (Converged, Maximum_Iterations_Exceeded, Outside_Newton_Region,
-  /// Singular_Mode_Block, User_Requested_Stop).
+  /// Singular_Mode_Block, User_Requested_Stop), or Stopped_At_Rounding_Floor (see tolerance).
   std::string newton_status;
   Vector initial, final;         ///< physical parameters
   double initial_objective = NAN, final_objective = NAN;

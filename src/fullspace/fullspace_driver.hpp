@@ -31,11 +31,14 @@ class FullSpaceDriver {
     std::string message;
     Evaluation forward;  // at the final parameters (when the Newton phase ended normally)
   };
-  /// One Newton attempt's guard: where the iterate last had its modes and where it lost them.
+  /// One Newton attempt's guard: where the iterate last had its modes and where it lost them;
+  /// whether it stopped the attempt at the constraints' rounding floor (at_rounding_floor).
   struct Guard {
     Vector last_good, fired_at;
     bool fired = false;
     int offset = 0;  // Newton iterations before this attempt
+    bool at_floor = false;
+    double previous_primal = -1;  // the attempt's previous constraint violation (-1: none yet)
   };
 
   /// 1. Reduced L-BFGS from `start` (eigenvalue terms first) until the projected gradient has
@@ -49,6 +52,12 @@ class FullSpaceDriver {
   /// 3. The per-iteration callback: records the iteration, guards it (when guard_needed).
   NewtonCallback guarded(Guard* guard);
   bool guard_needed(const Guard& guard, const KktRecord& record) const;
+  /// Whether the attempt has reached the rounding floor of its constraints: gradient and
+  /// complementarity converged, the constraint violation within kFloorFactor of the tolerance
+  /// but above it, and the last full step cut it less than kFloorReduction-fold, where Newton so
+  /// near the solution would square it. Further iterations would only chase rounding.
+  bool at_rounding_floor(const Guard& guard, const KktRecord& record) const;
+  static constexpr double kFloorFactor = 100, kFloorReduction = 4;
   /// 2-4. Newton from p to convergence, restarted where the guard fires, then verified.
   Outcome solve_from(Vector p);
   /// 4. The end point of a Newton attempt against a forward solve at its parameters.

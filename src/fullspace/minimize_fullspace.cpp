@@ -289,7 +289,9 @@ NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
     }
     summary_.kkt_history.push_back(record);
     if (options_.progress) options_.progress(record);
-    return !guard->fired;
+    if (!guard->fired && at_rounding_floor(*guard, record)) guard->at_floor = true;
+    guard->previous_primal = record.primal_infeasibility;
+    return !guard->fired && !guard->at_floor;
   };
 }
 
@@ -298,6 +300,13 @@ NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
 bool FullSpaceDriver::guard_needed(const Guard& guard, const KktRecord& record) const {
   const double step = (scaling_->to_scaled(record.p) - scaling_->to_scaled(guard.last_good)).lpNorm<Eigen::Infinity>();
   return !(step <= options_.guard_step && record.primal_infeasibility <= options_.guard_step);
+}
+
+bool FullSpaceDriver::at_rounding_floor(const Guard& guard, const KktRecord& record) const {
+  const double tol = options_.tolerance, primal = record.primal_infeasibility;
+  return guard.previous_primal > 0 && record.step_length == 1 && record.dual_infeasibility <= tol &&
+         record.complementarity <= tol && primal > tol && primal <= kFloorFactor * tol &&
+         primal * kFloorReduction > guard.previous_primal;
 }
 
 // The objective at p, evaluated again only when the last call was elsewhere or needed less: the
@@ -350,6 +359,11 @@ FullSpaceDriver::Outcome FullSpaceDriver::solve_from(Vector p) {
       ++summary_.restarts;  // more reduced iterations from where Newton stalled, then Newton again
       p = globalize(fp_->parameters(run.x.data()), std::max(options_.globalization_iterations, 10));
       continue;
+    }
+    if (guard.at_floor && run.stopped_by_callback) {
+      run.status = "Stopped_At_Rounding_Floor";
+      summary_.newton_status = run.status;
+      return verify(run, true, attempt_start);
     }
     if (!(guard.fired && run.stopped_by_callback)) return verify(run, run.solved, attempt_start);
     // The iterate left its modes: keep the Newton direction in q, drop the modes (see header).

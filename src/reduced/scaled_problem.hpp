@@ -10,6 +10,8 @@ namespace modalcal::detail {
 class ScaledProblem {
  public:
   ScaledProblem(Objective& objective, const ReducedOptions& options);
+  /// It keeps a reference to its options: a temporary would dangle.
+  ScaledProblem(Objective& objective, ReducedOptions&& options) = delete;
 
   struct Point {
     bool ok = false;
