@@ -186,6 +186,33 @@ TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {
   }
 }
 
+// A point evaluated again (the line search's accepted point, the final check) is not solved
+// again; another point is. Also with no parameters at all, where every point is the empty vector.
+TEST(Objective, ASecondEvaluationAtTheSamePointReusesItsForwardSolve) {
+  const Problem problem = LoadModel();
+  Objective objective(problem);
+  const Vector p = problem.initial_values();
+  const Evaluation first = objective.evaluate(p, Need::Value);
+  const int after_first = objective.forward_solves();
+  const Evaluation again = objective.evaluate(p, Need::Gradient);
+  ASSERT_TRUE(first.ok && again.ok) << first.message << again.message;
+  EXPECT_EQ(objective.forward_solves(), after_first);
+  EXPECT_EQ(again.value, first.value);
+  EXPECT_EQ(again.gradient.size(), p.size());
+  objective.evaluate(p * 1.01, Need::Value);
+  EXPECT_EQ(objective.forward_solves(), after_first + 1);
+
+  const Problem fixed = LoadProblem(WriteTempFile(
+      "fixed.yaml", testing::CantileverBar() + "measured:\n  modes: [{frequency_hz: 1.0}, {frequency_hz: 2.0}]\n"
+                                               "options: {num_modes: 4}\n"));
+  Objective no_parameters(fixed);
+  EXPECT_EQ(no_parameters.forward_solves(), 0);
+  const Evaluation e = no_parameters.evaluate(Vector(), Need::Value);
+  ASSERT_TRUE(e.ok) << e.message;
+  EXPECT_EQ(no_parameters.forward_solves(), 1);
+  EXPECT_EQ(no_parameters.evaluate(Vector(), Need::Value).value, e.value);
+}
+
 TEST(Objective, CentralDifferenceGradientAgreesWithTheAdjointAndCostsTwoSolvesPerParameter) {
   const Problem problem = LoadModel();
   Objective adjoint(problem);

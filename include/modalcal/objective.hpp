@@ -44,6 +44,10 @@
 
 namespace modalcal {
 
+namespace detail {
+class FullSpaceDriver;
+}
+
 /// Maps physical parameters p to the optimizer's dimensionless variables x and back:
 /// none: x = p; linear: x = p / reference; log: x = log10 p.
 class MODALCAL_EXPORT ParameterScaling {
@@ -168,6 +172,8 @@ class MODALCAL_EXPORT Objective {
   Objective(const Objective&) = delete;
   Objective& operator=(const Objective&) = delete;
 
+  /// The misfit and what `need` asks for at p. A point where the last forward solve of this
+  /// objective (or one sharing its model) was made is not solved again.
   Evaluation evaluate(const Vector& p, Need need = Need::Value);
   const Problem& problem() const { return problem_; }
   const ObjectiveOptions& options() const { return options_; }
@@ -185,15 +191,25 @@ class MODALCAL_EXPORT Objective {
 
  private:
   struct Workspace;
+  friend class detail::FullSpaceDriver;
+  /// Another misfit of the model `same_model` evaluates: `problem` is a copy of same_model's
+  /// with other measured weights, `options` may differ (the full-space driver's globalization
+  /// misfits). The two share the assembled system and the modal solver, so a forward solve at
+  /// the point where either last solved is not repeated.
+  /// \throws std::logic_error if the problems differ in model size, parameters or sensors.
+  Objective(const Problem& problem, ObjectiveOptions options, const Objective& same_model);
+  void check_problem() const;
+  int count_modes_and_residuals();
   class Evaluator;  // one evaluation's steps (objective.cpp)
   void add_mode_hessian(const Vector& p, int i, double lambda, const Vector& u, const Matrix& X, const Matrix& dU,
                         const Vector& dlambda, const Vector& m, const Vector& Ju, const Vector& w0, Matrix* H) const;
   const Problem& problem_;
   ObjectiveOptions options_;
   ParameterScaling regularization_scaling_;
-  std::unique_ptr<ParametricSystem> system_;
-  std::unique_ptr<ModalSolver> solver_;
-  std::unique_ptr<Workspace> workspace_;
+  // Shared with the objectives made with the same_model constructor.
+  std::shared_ptr<ParametricSystem> system_;
+  std::shared_ptr<ModalSolver> solver_;
+  std::shared_ptr<Workspace> workspace_;
   int num_residuals_ = 0;
   int forward_solves_ = 0, linear_solves_ = 0;
 };

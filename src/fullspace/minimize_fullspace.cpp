@@ -133,10 +133,10 @@ FullSpaceDriver::FullSpaceDriver(Objective& objective, const Vector& p0, const F
   if (options.globalization_misfit != objective.options().eigenvalue_misfit) {
     ObjectiveOptions global_options = objective.options();
     global_options.eigenvalue_misfit = options.globalization_misfit;
-    misfit_objective_ = std::make_unique<Objective>(problem_, global_options);
+    misfit_objective_.reset(new Objective(problem_, global_options, objective_));  // shares its forward solves
   }
   if (options.eigenvalues_first && options.globalization_iterations > 0 && weighted_shapes_ && weighted_eigenvalues_)
-    eigenvalue_objective_ = std::make_unique<Objective>(eigenvalue_terms(), global_objective().options());
+    eigenvalue_objective_.reset(new Objective(eigenvalue_terms(), global_objective().options(), objective_));
   const bool structured = options.newton_solver == FullSpaceOptions::NewtonSolver::BlockElimination ||
                           options.kkt_solver == FullSpaceOptions::KktSolver::Structured;
   summary_.kkt_solver =
@@ -425,7 +425,7 @@ FullSpaceDriver::Outcome FullSpaceDriver::escape_crossings(Outcome outcome) {
     if (!escape_objective_) {
       ObjectiveOptions in_order = global_objective().options();
       in_order.eigenvalues_in_frequency_order = true;
-      escape_objective_ = std::make_unique<Objective>(eigenvalue_terms(), in_order);
+      escape_objective_.reset(new Objective(eigenvalue_terms(), in_order, objective_));
     }
     const FullSpaceSummary minimum = summary_;
     const Outcome minimum_outcome = outcome;

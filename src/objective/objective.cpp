@@ -39,9 +39,14 @@ bool ObjectiveOptions::IsValid(std::string* error) const {
 }
 
 struct Objective::Workspace {
-  SparseMatrix K, M;
+  SparseMatrix K, M;     // at the last forward solve
   SparseMatrix sensors;  // P: free DOFs -> sensor readings
   int modes_needed = 0;
+  // The last successful forward solve: where, and its result. K, M and the solver's factorization
+  // are that point's as long as it is the last solve.
+  bool has_solved = false;
+  Vector solved_at;
+  ModalResult solved;
 };
 
 namespace {
@@ -80,35 +85,60 @@ std::string describe_measured(const MeasuredMode& m, int index) {
 
 Objective::Objective(const Problem& problem, ObjectiveOptions options)
     : problem_(problem), options_(options), regularization_scaling_(problem.parameters) {
-  std::string error;
-  if (!options_.IsValid(&error)) throw std::invalid_argument("ObjectiveOptions: " + error);
-  if (problem.measured.empty())
-    throw std::invalid_argument(problem.path + ": no measured modes to calibrate against" +
-                                (problem.synthetic ? std::string(" (its synthetic modes are computed by "
-                                                                 "synthesize_measured(), modalcal/synthesis.hpp)")
-                                                   : std::string()));
-  if (options_.eigenvalues_in_frequency_order)
-    for (size_t i = 0; i < problem.measured.size(); ++i)
-      if (problem.measured[i].has_shape_term())
-        throw std::invalid_argument("ObjectiveOptions::eigenvalues_in_frequency_order needs an objective without shape "
-                                    "terms, but " + describe_measured(problem.measured[i], static_cast<int>(i)) +
-                                    " has a weighted shape");
-  system_ = std::make_unique<ParametricSystem>(problem.model, problem.parameter_targets());
-  workspace_ = std::make_unique<Workspace>();
+  check_problem();
+  system_ = std::make_shared<ParametricSystem>(problem.model, problem.parameter_targets());
+  workspace_ = std::make_shared<Workspace>();
   workspace_->sensors = detail::sensor_matrix(problem, system_->dof_map());
-  int highest = problem.options.num_modes;
-  for (const MeasuredMode& m : problem.measured) {
-    if (m.pairing.kind == PairingRule::Kind::ModelIndex) highest = std::max(highest, m.pairing.model_index);
-    num_residuals_ += 1 + static_cast<int>(m.shape.size());
-  }
-  // Extra modes only as far as a small model has them.
-  workspace_->modes_needed =
-      std::max(highest, std::min(highest + options_.extra_modes, system_->num_dofs() - problem.expected_rigid_modes()));
+  workspace_->modes_needed = count_modes_and_residuals();
   ModalOptions modal;
   modal.num_modes = workspace_->modes_needed;
   modal.max_rigid_modes = problem.expected_rigid_modes();
   modal.tolerance = problem.options.tolerance;
-  solver_ = std::make_unique<ModalSolver>(system_->pattern(), modal);
+  solver_ = std::make_shared<ModalSolver>(system_->pattern(), modal);
+}
+
+Objective::Objective(const Problem& problem, ObjectiveOptions options, const Objective& same_model)
+    : problem_(problem),
+      options_(options),
+      regularization_scaling_(problem.parameters),
+      system_(same_model.system_),
+      solver_(same_model.solver_),
+      workspace_(same_model.workspace_) {
+  check_problem();
+  const Problem& other = same_model.problem_;
+  if (problem.model.num_nodes() != other.model.num_nodes() || problem.parameter_targets() != other.parameter_targets() ||
+      problem.sensors.size() != other.sensors.size() || count_modes_and_residuals() != workspace_->modes_needed)
+    throw std::logic_error("Objective: sharing the forward model of a different problem");
+}
+
+// The problem and options make an objective: measured modes, and frequency order without shapes.
+void Objective::check_problem() const {
+  std::string error;
+  if (!options_.IsValid(&error)) throw std::invalid_argument("ObjectiveOptions: " + error);
+  if (problem_.measured.empty())
+    throw std::invalid_argument(problem_.path + ": no measured modes to calibrate against" +
+                                (problem_.synthetic ? std::string(" (its synthetic modes are computed by "
+                                                                  "synthesize_measured(), modalcal/synthesis.hpp)")
+                                                    : std::string()));
+  if (options_.eigenvalues_in_frequency_order)
+    for (size_t i = 0; i < problem_.measured.size(); ++i)
+      if (problem_.measured[i].has_shape_term())
+        throw std::invalid_argument("ObjectiveOptions::eigenvalues_in_frequency_order needs an objective without shape "
+                                    "terms, but " + describe_measured(problem_.measured[i], static_cast<int>(i)) +
+                                    " has a weighted shape");
+}
+
+// Sets num_residuals_; returns the modes the forward solve computes: the highest the pairing can
+// need, plus extra_modes as far as a small model has them.
+int Objective::count_modes_and_residuals() {
+  int highest = problem_.options.num_modes;
+  num_residuals_ = 0;
+  for (const MeasuredMode& m : problem_.measured) {
+    if (m.pairing.kind == PairingRule::Kind::ModelIndex) highest = std::max(highest, m.pairing.model_index);
+    num_residuals_ += 1 + static_cast<int>(m.shape.size());
+  }
+  return std::max(highest,
+                  std::min(highest + options_.extra_modes, system_->num_dofs() - problem_.expected_rigid_modes()));
 }
 
 Objective::~Objective() = default;
@@ -223,10 +253,19 @@ class Objective::Evaluator {
 };
 
 bool Objective::Evaluator::forward_solve() {
+  if (ws_.has_solved && ws_.solved_at.size() == p_.size() && ws_.solved_at == p_) {
+    e_.modal = ws_.solved;  // the last solve, of this objective or one sharing its model
+    return true;
+  }
   o_.system_->assemble(p_, &ws_.K, &ws_.M);
   e_.modal = o_.solver_->solve(ws_.K, ws_.M);
   ++o_.forward_solves_;
-  if (e_.modal.status == EigenStatus::Successful) return true;
+  ws_.has_solved = e_.modal.status == EigenStatus::Successful;
+  if (ws_.has_solved) {
+    ws_.solved_at = p_;
+    ws_.solved = e_.modal;
+    return true;
+  }
   e_.message = "forward solve failed: " + o_.system_->failure_message(p_, e_.modal.message);
   return false;
 }
