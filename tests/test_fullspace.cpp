@@ -312,149 +312,129 @@ TEST(FullSpace, ConvergenceOrderIsEstimatedAboveTheRoundingFloor) {
 
 // The driver's steps on their own (fullspace/fullspace_driver.hpp).
 
+// The test model's driver at `factor` x the truth, its Newton phase set up and started there.
+struct DriverAt {
+  explicit DriverAt(double factor)
+      : problem(Identifiable()), p(problem.truth_values() * factor), objective(problem), driver(objective, p, options) {
+    driver.set_up_newton(p);
+    start_failed = driver.newton_start(p, &x0, &y0).has_value();
+  }
+  const Problem problem;
+  const Vector p;
+  Objective objective;
+  const FullSpaceOptions options;  // before the driver, which keeps a reference
+  detail::FullSpaceDriver driver;
+  Vector x0, y0;
+  bool start_failed = true;
+};
+
+// The full-space point x with the unknowns of its first two modes swapped.
+Vector WithFirstTwoModesSwapped(const detail::FullSpaceProblem& fp, const Vector& x) {
+  Matrix U;
+  Vector lambda, q;
+  fp.unpack(x.data(), &U, &lambda, &q);
+  U.col(0).swap(U.col(1));
+  return fp.pack(U, lambda, q);
+}
+
 // Step 1: from 1.3x the truth (one basin), the globalization lowers J and stops on its gradient
 // criterion, not on its iteration cap.
 TEST(FullSpaceDriver, GlobalizationLowersTheObjectiveAndStopsOnItsGradientCriterion) {
-  const Problem problem = Identifiable();
-  const Vector start = problem.truth_values() * 1.3;
-  Objective objective(problem);
-  const FullSpaceOptions options;
-  detail::FullSpaceDriver driver(objective, start, options);
-  const Vector globalized = driver.globalize_from_start(start);
-  const double before = objective.evaluate(start).value, after = objective.evaluate(globalized).value;
+  DriverAt d(1.3);
+  const Vector globalized = d.driver.globalize_from_start(d.p);
+  const double before = d.objective.evaluate(d.p).value, after = d.objective.evaluate(globalized).value;
   EXPECT_LT(after, 1e-2 * before) << before << " -> " << after;
-  EXPECT_GT(driver.summary().globalization_iterations, 0);
-  EXPECT_LT(driver.summary().globalization_iterations, 2 * options.globalization_iterations);
+  EXPECT_GT(d.driver.summary().globalization_iterations, 0);
+  EXPECT_LT(d.driver.summary().globalization_iterations, 2 * d.options.globalization_iterations);
 }
 
 // Step 2: the Newton start is the forward solution at p: the constraints hold to the eigen-solver's
 // accuracy, the parameters are p.
 TEST(FullSpaceDriver, NewtonStartIsTheForwardSolutionAndMeetsTheConstraints) {
-  const Problem problem = Identifiable();
-  const Vector p = problem.truth_values() * 1.1;
-  Objective objective(problem);
-  const FullSpaceOptions options;
-  detail::FullSpaceDriver driver(objective, p, options);
-  driver.set_up_newton(p);
-  Vector x0, y0;
-  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
-  detail::FullSpaceProblem& fp = driver.fullspace_problem();
+  DriverAt d(1.1);
+  ASSERT_FALSE(d.start_failed);
+  detail::FullSpaceProblem& fp = d.driver.fullspace_problem();
   Vector c(fp.num_constraints());
-  fp.constraints(x0.data(), c.data());
+  fp.constraints(d.x0.data(), c.data());
   EXPECT_LT(c.lpNorm<Eigen::Infinity>(), 1e-8);
-  EXPECT_LT(MaxRelativeError(fp.parameters(x0.data()), p), 1e-12);
-  EXPECT_EQ(y0.size(), fp.num_constraints());
+  EXPECT_LT(MaxRelativeError(fp.parameters(d.x0.data()), d.p), 1e-12);
+  EXPECT_EQ(d.y0.size(), fp.num_constraints());
 }
 
 // Step 3: the guard is skipped where the iterate has not moved and meets its constraints, runs
 // otherwise, and fires where a u_i has left its mode (two modes swapped).
 TEST(FullSpaceDriver, TheGuardSkipsWhereNothingMovedAndFiresWhereAModeWasSwapped) {
-  const Problem problem = Identifiable();
-  const Vector p = problem.truth_values() * 1.1;
-  Objective objective(problem);
-  FullSpaceOptions options;
-  detail::FullSpaceDriver driver(objective, p, options);
-  driver.set_up_newton(p);
-  Vector x0, y0;
-  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
-  const detail::FullSpaceProblem& fp = driver.fullspace_problem();
-
-  detail::FullSpaceDriver::Guard guard{p, p, false, 0};
-  detail::NewtonCallback callback = driver.guarded(&guard);
-  EXPECT_TRUE(callback(detail::NewtonIteration::at(0, 0.0, 1e-12, 1e-12, 0, 0), x0.data()));
-  ASSERT_EQ(driver.summary().kkt_history.size(), 1u);
-  EXPECT_TRUE(std::isnan(driver.summary().kkt_history.back().min_mac)) << "the start needs no guard";
+  DriverAt d(1.1);
+  ASSERT_FALSE(d.start_failed);
+  detail::FullSpaceDriver::Guard guard{d.p, d.p, false, 0};
+  detail::NewtonCallback callback = d.driver.guarded(&guard);
+  EXPECT_TRUE(callback(detail::NewtonIteration::at(0, 0.0, 1e-12, 1e-12, 0, 0), d.x0.data()));
+  ASSERT_EQ(d.driver.summary().kkt_history.size(), 1u);
+  EXPECT_TRUE(std::isnan(d.driver.summary().kkt_history.back().min_mac)) << "the start needs no guard";
 
   // The same point with a large constraint violation is guarded, and passes.
-  EXPECT_TRUE(callback(detail::NewtonIteration::at(1, 0.0, 1.0, 1e-12, 1, 0), x0.data()));
-  EXPECT_GT(driver.summary().kkt_history.back().min_mac, 0.99);
+  EXPECT_TRUE(callback(detail::NewtonIteration::at(1, 0.0, 1.0, 1e-12, 1, 0), d.x0.data()));
+  EXPECT_GT(d.driver.summary().kkt_history.back().min_mac, 0.99);
   EXPECT_FALSE(guard.fired);
 
-  Matrix U;
-  Vector lambda, q;
-  fp.unpack(x0.data(), &U, &lambda, &q);
-  U.col(0).swap(U.col(1));
-  const Vector swapped = fp.pack(U, lambda, q);
+  const Vector swapped = WithFirstTwoModesSwapped(d.driver.fullspace_problem(), d.x0);
   EXPECT_FALSE(callback(detail::NewtonIteration::at(2, 0.0, 1.0, 1e-12, 1, 0), swapped.data()));
   EXPECT_TRUE(guard.fired);
-  EXPECT_LT(driver.summary().kkt_history.back().min_mac, options.guard_mac);
+  EXPECT_LT(d.driver.summary().kkt_history.back().min_mac, d.options.guard_mac);
 }
 
 // Step 3 also stops an attempt at the rounding floor of its constraints: converged gradient,
 // constraint violation just above the tolerance, and a full step that no longer squares it.
 TEST(FullSpaceDriver, AnAttemptStopsAtTheRoundingFloorButNotWhileNewtonStillConverges) {
-  const Problem problem = Identifiable();
-  const Vector p = problem.truth_values();
-  Objective objective(problem);
-  const FullSpaceOptions options;  // tolerance 1e-10
-  detail::FullSpaceDriver driver(objective, p, options);
-  driver.set_up_newton(p);
-  Vector x0, y0;
-  ASSERT_FALSE(driver.newton_start(p, &x0, &y0).has_value());
+  DriverAt d(1.0);  // tolerance 1e-10
+  ASSERT_FALSE(d.start_failed);
   auto iteration = [](int k, double primal) { return detail::NewtonIteration::at(k, 0.0, primal, 1e-16, 1, 0); };
-
-  detail::FullSpaceDriver::Guard converging{p, p, false, 0};
-  detail::NewtonCallback callback = driver.guarded(&converging);
-  EXPECT_TRUE(callback(iteration(0, 1e-4), x0.data()));
-  EXPECT_TRUE(callback(iteration(1, 1e-8), x0.data()));  // squared: Newton goes on
-  EXPECT_FALSE(converging.at_floor);
-
-  detail::FullSpaceDriver::Guard stalled{p, p, false, 0};
-  callback = driver.guarded(&stalled);
-  EXPECT_TRUE(callback(iteration(0, 4.0e-10), x0.data()));
-  EXPECT_FALSE(callback(iteration(1, 1.3e-10), x0.data()));  // cut 3-fold: the floor
-  EXPECT_TRUE(stalled.at_floor);
-  EXPECT_FALSE(stalled.fired);
-
-  detail::FullSpaceDriver::Guard far{p, p, false, 0};
-  callback = driver.guarded(&far);
-  EXPECT_TRUE(callback(iteration(0, 4.0e-6), x0.data()));
-  EXPECT_TRUE(callback(iteration(1, 3.0e-6), x0.data()));  // slow, but far above the tolerance
-  EXPECT_FALSE(far.at_floor);
+  struct Case {
+    double before, after;
+    bool floor;
+  };
+  for (const Case& c : {Case{1e-4, 1e-8, false},         // squared: Newton goes on
+                        Case{4.0e-10, 1.3e-10, true},    // cut 3-fold just above the tolerance: the floor
+                        Case{4.0e-6, 3.0e-6, false}}) {  // slow, but far above the tolerance
+    detail::FullSpaceDriver::Guard guard{d.p, d.p, false, 0};
+    detail::NewtonCallback callback = d.driver.guarded(&guard);
+    EXPECT_TRUE(callback(iteration(0, c.before), d.x0.data()));
+    EXPECT_EQ(callback(iteration(1, c.after), d.x0.data()), !c.floor) << c.before << " -> " << c.after;
+    EXPECT_EQ(guard.at_floor, c.floor);
+    EXPECT_FALSE(guard.fired);
+  }
 }
 
 // Step 4: the final check calls "wrong modes" an end point that the Newton solver called
 // converged but whose u_i are not the paired modes, and "converged" the forward solution.
 TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {
-  const Problem problem = Identifiable();
-  const Vector p = problem.truth_values() * 1.1;
-  Objective objective(problem);
-  const FullSpaceOptions options;
-  detail::FullSpaceDriver driver(objective, p, options);
-  driver.set_up_newton(p);
+  DriverAt d(1.1);
+  ASSERT_FALSE(d.start_failed);
   detail::NewtonPhaseResult run;
-  ASSERT_FALSE(driver.newton_start(p, &run.x, &run.y).has_value());
+  run.x = d.x0;
+  run.y = d.y0;
   run.solved = true;
   run.status = "Solve_Succeeded";
-  EXPECT_EQ(driver.verify(run, true, 0).status, FullSpaceStatus::Converged);
-
-  const detail::FullSpaceProblem& fp = driver.fullspace_problem();
-  Matrix U;
-  Vector lambda, q;
-  fp.unpack(run.x.data(), &U, &lambda, &q);
-  U.col(0).swap(U.col(1));
-  run.x = fp.pack(U, lambda, q);
-  const detail::FullSpaceDriver::Outcome outcome = driver.verify(run, true, 0);
+  EXPECT_EQ(d.driver.verify(run, true, 0).status, FullSpaceStatus::Converged);
+  run.x = WithFirstTwoModesSwapped(d.driver.fullspace_problem(), d.x0);
+  const detail::FullSpaceDriver::Outcome outcome = d.driver.verify(run, true, 0);
   EXPECT_EQ(outcome.status, FullSpaceStatus::WrongModes);
   EXPECT_NE(outcome.message.find("measured mode"), std::string::npos) << outcome.message;
 }
 
 // Step 5: without crossed pairs there is nothing to escape from.
 TEST(FullSpaceDriver, NoEscapeWhereNoPairsCross) {
-  const Problem problem = Identifiable();
-  const Vector p = problem.truth_values();
-  Objective objective(problem);
-  const FullSpaceOptions options;
-  detail::FullSpaceDriver driver(objective, p, options);
-  driver.set_up_newton(p);
+  DriverAt d(1.0);
+  ASSERT_FALSE(d.start_failed);
   detail::NewtonPhaseResult run;
-  ASSERT_FALSE(driver.newton_start(p, &run.x, &run.y).has_value());
+  run.x = d.x0;
+  run.y = d.y0;
   run.solved = true;
-  const detail::FullSpaceDriver::Outcome converged = driver.verify(run, true, 0);
+  const detail::FullSpaceDriver::Outcome converged = d.driver.verify(run, true, 0);
   ASSERT_EQ(converged.status, FullSpaceStatus::Converged);
-  const detail::FullSpaceDriver::Outcome after = driver.escape_crossings(converged);
+  const detail::FullSpaceDriver::Outcome after = d.driver.escape_crossings(converged);
   EXPECT_EQ(after.status, FullSpaceStatus::Converged);
-  EXPECT_TRUE(driver.summary().crossing_escapes.empty());
+  EXPECT_TRUE(d.driver.summary().crossing_escapes.empty());
 }
 
 TEST(BoxQp, SatisfiesTheOptimalityConditionsOfRandomConvexProblems) {
