@@ -326,6 +326,16 @@ struct DriverAt {
   detail::FullSpaceDriver driver;
   Vector x0, y0;
   bool start_failed = true;
+
+  /// A Newton phase that ended, solved, at the start.
+  detail::NewtonPhaseResult solved_at_start() const {
+    detail::NewtonPhaseResult run;
+    run.x = x0;
+    run.y = y0;
+    run.solved = true;
+    run.status = "Solve_Succeeded";
+    return run;
+  }
 };
 
 // The full-space point x with the unknowns of its first two modes swapped.
@@ -410,11 +420,7 @@ TEST(FullSpaceDriver, AnAttemptStopsAtTheRoundingFloorButNotWhileNewtonStillConv
 TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {
   DriverAt d(1.1);
   ASSERT_FALSE(d.start_failed);
-  detail::NewtonPhaseResult run;
-  run.x = d.x0;
-  run.y = d.y0;
-  run.solved = true;
-  run.status = "Solve_Succeeded";
+  detail::NewtonPhaseResult run = d.solved_at_start();
   EXPECT_EQ(d.driver.verify(run, true, 0).status, FullSpaceStatus::Converged);
   run.x = WithFirstTwoModesSwapped(d.driver.fullspace_problem(), d.x0);
   const detail::FullSpaceDriver::Outcome outcome = d.driver.verify(run, true, 0);
@@ -426,11 +432,7 @@ TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {
 TEST(FullSpaceDriver, NoEscapeWhereNoPairsCross) {
   DriverAt d(1.0);
   ASSERT_FALSE(d.start_failed);
-  detail::NewtonPhaseResult run;
-  run.x = d.x0;
-  run.y = d.y0;
-  run.solved = true;
-  const detail::FullSpaceDriver::Outcome converged = d.driver.verify(run, true, 0);
+  const detail::FullSpaceDriver::Outcome converged = d.driver.verify(d.solved_at_start(), true, 0);
   ASSERT_EQ(converged.status, FullSpaceStatus::Converged);
   const detail::FullSpaceDriver::Outcome after = d.driver.escape_crossings(converged);
   EXPECT_EQ(after.status, FullSpaceStatus::Converged);
