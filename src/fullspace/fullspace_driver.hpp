@@ -74,7 +74,6 @@ class FullSpaceDriver {
   Vector globalize_on(Objective& on, const Vector& from, int iterations);
   Vector globalize(const Vector& from, int iterations) { return globalize_on(global_objective(), from, iterations); }
   Vector backtrack(const Vector& from, const Vector& to);
-  const Evaluation& forward_at(const Vector& p, Need need);
   NewtonPhaseOptions newton_options() const;
 
   Objective& objective_;
@@ -89,9 +88,6 @@ class FullSpaceDriver {
   std::unique_ptr<Problem> eigenvalue_problem_;
   std::optional<ParameterScaling> scaling_;
   std::unique_ptr<FullSpaceProblem> fp_;
-  Vector last_forward_p_;  // where forward_at last evaluated the objective, and with what
-  Need last_forward_need_ = Need::Value;
-  Evaluation last_forward_;
 };
 
 }  // namespace modalcal::detail

@@ -232,7 +232,7 @@ Vector FullSpaceDriver::backtrack(const Vector& from, const Vector& to) {
 // multipliers from the adjoint. The reason when the forward solve fails.
 std::optional<std::string> FullSpaceDriver::newton_start(const Vector& p, Vector* x0, Vector* y0) {
   const detail::FullSpaceProblem& fp = *fp_;
-  const Evaluation& e = forward_at(p, Need::Gradient);
+  const Evaluation e = objective_.evaluate(p, Need::Gradient);
   if (!e.ok) return "start of the Newton phase: " + e.message;
   Matrix U(fp.num_dofs(), fp.num_modes()), W(fp.num_dofs(), fp.num_modes());
   Vector lambda(fp.num_modes()), eta(fp.num_modes());
@@ -268,7 +268,7 @@ NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
     record.parameter_error = parameter_error(truth_, record.p);
     if (options_.mode_guard && guard_needed(*guard, record)) {
       const Clock::time_point guard_start = Clock::now();
-      const Evaluation& forward = forward_at(record.p, Need::Value);
+      const Evaluation forward = objective_.evaluate(record.p, Need::Value);
       double min_mac = 0;
       if (forward.ok) {
         const SparseMatrix& M = fp.mass_matrix(x);
@@ -307,18 +307,6 @@ bool FullSpaceDriver::at_rounding_floor(const Guard& guard, const KktRecord& rec
   return guard.previous_primal > 0 && record.step_length == 1 && record.dual_infeasibility <= tol &&
          record.complementarity <= tol && primal > tol && primal <= kFloorFactor * tol &&
          primal * kFloorReduction > guard.previous_primal;
-}
-
-// The objective at p, evaluated again only when the last call was elsewhere or needed less: the
-// Newton start and its first guard, the last guard and the final check, see the same point.
-const Evaluation& FullSpaceDriver::forward_at(const Vector& p, Need need) {
-  const bool same = last_forward_p_.size() == p.size() && last_forward_p_ == p && last_forward_need_ >= need;
-  if (!same) {
-    last_forward_ = objective_.evaluate(p, need);
-    last_forward_p_ = p;
-    last_forward_need_ = need;
-  }
-  return last_forward_;
 }
 
 NewtonPhaseOptions FullSpaceDriver::newton_options() const {
@@ -388,7 +376,7 @@ FullSpaceDriver::Outcome FullSpaceDriver::verify(const detail::NewtonPhaseResult
   Vector lambda;
   fp.unpack(run.x.data(), &U, &lambda, &summary_.final);
   Outcome outcome;
-  outcome.forward = forward_at(summary_.final, Need::Value);
+  outcome.forward = objective_.evaluate(summary_.final, Need::Value);
   const Evaluation& final_forward = outcome.forward;
   summary_.mode_check = check_modes(objective_, *fp_, run.x, final_forward, options_);
   summary_.final_objective = final_forward.ok ? final_forward.value : NAN;
