@@ -7,7 +7,11 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "modalcal/assembly.hpp"
+#include "modalcal/eigen.hpp"
+#include "modalcal/mode_description.hpp"
 #include "modalcal/objective.hpp"
+#include "objective/mode_pairing.hpp"
 #include "objective/shape_misfit.hpp"
 
 namespace modalcal {
@@ -107,15 +111,49 @@ void add_cross_orthogonality(const Matrix& model_at_sensors, const std::vector<V
   }
 }
 
+// The forward solve at p and its pairing with the measured modes, as the objective makes them
+// (objective/mode_pairing.hpp), without the objective's residuals and derivatives.
+struct ForwardPairs {
+  ModalResult modal;
+  SparseMatrix sensors;  // free DOFs -> sensor readings
+  std::vector<PairedMode> pairs;
+  std::vector<std::string> warnings;
+};
+
+ForwardPairs solve_and_pair(const Problem& problem, const Vector& p) {
+  if (problem.measured.empty()) throw std::invalid_argument(problem.path + ": no measured modes to compare with");
+  if (p.size() != static_cast<Eigen::Index>(problem.parameters.size()) || !p.allFinite())
+    throw std::runtime_error("parameter vector has wrong size or non-finite entries");
+  const ObjectiveOptions defaults;
+  const ParametricSystem system(problem.model, problem.parameter_targets());
+  SparseMatrix K, M;
+  system.assemble(p, &K, &M);
+  ModalOptions options;
+  options.num_modes = detail::modes_to_compute(problem, defaults.extra_modes, system.num_dofs());
+  options.max_rigid_modes = problem.expected_rigid_modes();
+  options.tolerance = problem.options.tolerance;
+  ForwardPairs e;
+  e.modal = ModalSolver(system.pattern(), options).solve(K, M);
+  if (e.modal.status != EigenStatus::Successful)
+    throw std::runtime_error("forward solve failed: " + system.failure_message(p, e.modal.message));
+  e.sensors = detail::sensor_matrix(problem, system.dof_map());
+  const detail::ModePairing pairing = detail::pair_modes(problem, e.modal, e.sensors, false,
+                                                         [&] { return describe_modes(system, p, M, e.modal); });
+  if (!pairing.ok()) throw std::runtime_error(pairing.message);
+  e.pairs = detail::paired_modes(problem, e.modal, pairing.model_of, pairing.mac_table);
+  for (std::string& warning : detail::close_eigenvalue_warnings(problem, e.modal, pairing.model_of,
+                                                                defaults.close_eigenvalue_tolerance))
+    e.warnings.push_back(std::move(warning) + ": its derivatives are ill defined there");
+  return e;
+}
+
 }  // namespace
 
 ModalComparison compare_modes(const Problem& problem, const Vector& p, const ComparisonOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("ComparisonOptions: " + error);
-  Objective objective(problem);
-  const Evaluation e = objective.evaluate(p);
-  if (!e.ok) throw std::runtime_error(e.message);
-  const Matrix model_at_sensors = detail::sensor_matrix(problem, objective.system().dof_map()) * e.modal.modes;
+  const ForwardPairs e = solve_and_pair(problem, p);
+  const Matrix model_at_sensors = e.sensors * e.modal.modes;
   const int num_model = static_cast<int>(e.modal.eigenvalues.size());
   const int num_measured = static_cast<int>(problem.measured.size());
 

@@ -8,6 +8,7 @@
 #include "modalcal/mode_description.hpp"
 #include "objective/assignment.hpp"
 #include "objective/deflated_solve.hpp"
+#include "objective/mode_pairing.hpp"
 #include "objective/shape_misfit.hpp"
 
 namespace modalcal {
@@ -74,12 +75,6 @@ Vector shape_residual_derivative(const Vector& y, const Vector& phi_unit, const 
   return t - phi_unit * phi_unit.dot(t);
 }
 
-std::string describe_measured(const MeasuredMode& m, int index) {
-  std::ostringstream s;
-  s << "measured mode " << index + 1;
-  if (!m.label.empty()) s << " ('" << m.label << "')";
-  return s.str();
-}
 
 }  // namespace
 
@@ -124,21 +119,16 @@ void Objective::check_problem() const {
     for (size_t i = 0; i < problem_.measured.size(); ++i)
       if (problem_.measured[i].has_shape_term())
         throw std::invalid_argument("ObjectiveOptions::eigenvalues_in_frequency_order needs an objective without shape "
-                                    "terms, but " + describe_measured(problem_.measured[i], static_cast<int>(i)) +
+                                    "terms, but " + detail::describe_measured(problem_.measured[i], static_cast<int>(i)) +
                                     " has a weighted shape");
 }
 
 // Sets num_residuals_; returns the modes the forward solve computes: the highest the pairing can
 // need, plus extra_modes as far as a small model has them.
 int Objective::count_modes_and_residuals() {
-  int highest = problem_.options.num_modes;
   num_residuals_ = 0;
-  for (const MeasuredMode& m : problem_.measured) {
-    if (m.pairing.kind == PairingRule::Kind::ModelIndex) highest = std::max(highest, m.pairing.model_index);
-    num_residuals_ += 1 + static_cast<int>(m.shape.size());
-  }
-  return std::max(highest,
-                  std::min(highest + options_.extra_modes, system_->num_dofs() - problem_.expected_rigid_modes()));
+  for (const MeasuredMode& m : problem_.measured) num_residuals_ += 1 + static_cast<int>(m.shape.size());
+  return detail::modes_to_compute(problem_, options_.extra_modes, system_->num_dofs());
 }
 
 Objective::~Objective() = default;
@@ -225,8 +215,6 @@ class Objective::Evaluator {
   bool sensitivities(Need need);
 
  private:
-  bool pair_by_rules(std::vector<bool>* taken);
-  void pair_by_mac(const std::vector<bool>& taken);
   const detail::DeflationBasis& deflation_basis();
   std::optional<Matrix> deflated_solve(const char* what, const std::vector<int>& own_columns, const Matrix& B);
   int num_measured() const { return static_cast<int>(problem_.measured.size()); }
@@ -270,119 +258,35 @@ bool Objective::Evaluator::forward_solve() {
   return false;
 }
 
-// Fixed rules first (a model index, or the n-th mode of a family), then by MAC (largest total
-// MAC, one-to-one); with eigenvalues_in_frequency_order the MAC-paired set is assigned in
-// frequency order.
+// The pairing of objective/mode_pairing.hpp, its tables kept for the residuals and derivatives.
 bool Objective::Evaluator::pair_modes() {
-  model_of_.assign(num_measured(), -1);
-  std::vector<bool> taken(num_model(), false);
-  if (!pair_by_rules(&taken)) return false;
-  mac_table_ = Matrix::Constant(num_measured(), num_model(), -1.0);
-  for (int i = 0; i < num_measured(); ++i) {
-    const MeasuredMode& m = problem_.measured[i];
-    if (m.shape.size() == 0) continue;
-    for (int k = 0; k < num_model(); ++k) mac_table_(i, k) = mac(ws_.sensors * U().col(k), m.shape);
+  detail::ModePairing pairing =
+      detail::pair_modes(problem_, e_.modal, ws_.sensors, o_.options_.eigenvalues_in_frequency_order,
+                         [&] { return describe_modes(*o_.system_, p_, ws_.M, e_.modal); });
+  if (!pairing.ok()) {
+    e_.message = pairing.message;
+    return false;
   }
-  pair_by_mac(taken);
-  for (int i = 0; i < num_measured(); ++i)
-    if (model_of_[i] < 0) {
-      e_.message = describe_measured(problem_.measured[i], i) + ": no model mode left to pair with";
-      return false;
-    }
-  if (o_.options_.eigenvalues_in_frequency_order && mac_rows_.size() > 1) {
-    // The shapes chose the set; frequency order assigns it (see the option's comment).
-    std::vector<int> set;
-    for (int i : mac_rows_) set.push_back(model_of_[i]);
-    std::sort(set.begin(), set.end(), [&](int a, int b) { return lambda()[a] < lambda()[b]; });
-    std::vector<int> rows = mac_rows_;
-    std::stable_sort(rows.begin(), rows.end(), [&](int a, int b) {
-      return problem_.measured[a].frequency_hz < problem_.measured[b].frequency_hz;
-    });
-    for (size_t a = 0; a < rows.size(); ++a) model_of_[rows[a]] = set[a];
-  }
+  model_of_ = std::move(pairing.model_of);
+  mac_rows_ = std::move(pairing.mac_rows);
+  mac_table_ = std::move(pairing.mac_table);
   return true;
-}
-
-bool Objective::Evaluator::pair_by_rules(std::vector<bool>* taken) {
-  std::vector<ModeDescription> described;
-  for (int i = 0; i < num_measured(); ++i) {
-    const PairingRule& rule = problem_.measured[i].pairing;
-    int k = -1;
-    if (rule.kind == PairingRule::Kind::ModelIndex) {
-      k = rule.model_index - 1;
-    } else if (rule.kind == PairingRule::Kind::Family) {
-      if (described.empty()) described = describe_modes(*o_.system_, p_, ws_.M, e_.modal);
-      k = find_family_mode(described, rule.family, rule.family_index) - 1;
-      if (k < 0) {
-        e_.message = describe_measured(problem_.measured[i], i) + ": the lowest " + std::to_string(num_model()) +
-                     " model modes have fewer than " + std::to_string(rule.family_index) + " '" + rule.family +
-                     "' modes; raise options.num_modes or check the model";
-        return false;
-      }
-    } else {
-      continue;
-    }
-    if (k >= num_model() || (*taken)[k]) {
-      e_.message = describe_measured(problem_.measured[i], i) + ": model mode " + std::to_string(k + 1) +
-                   ((*taken)[k] ? " is already paired with another measured mode" : " was not computed");
-      return false;
-    }
-    model_of_[i] = k;
-    (*taken)[k] = true;
-  }
-  return true;
-}
-
-// The assignment with the largest total MAC among the modes left free.
-void Objective::Evaluator::pair_by_mac(const std::vector<bool>& taken) {
-  std::vector<int> free_columns;
-  for (int i = 0; i < num_measured(); ++i)
-    if (model_of_[i] < 0 && problem_.measured[i].pairing.kind == PairingRule::Kind::Mac) mac_rows_.push_back(i);
-  for (int k = 0; k < num_model(); ++k)
-    if (!taken[k]) free_columns.push_back(k);
-  if (mac_rows_.empty() || mac_rows_.size() > free_columns.size()) return;
-  // Sparse sensors can see two modes alike (on a test model, MAC 0.99999 with modes at 1.7 and
-  // 3.2 Hz): rounding must not decide between them, or J jumps wherever the tie flips and a line
-  // search stalls there. Each score loses kMacTieWeight |ln(lambda_k / lambda_m)|, so a tie
-  // goes to the nearer eigenvalue while a MAC difference of more than ~1e-3 still decides.
-  constexpr double kMacTieWeight = 1e-3;
-  Matrix score(mac_rows_.size(), free_columns.size());
-  for (size_t a = 0; a < mac_rows_.size(); ++a) {
-    const double target = eigenvalue_of_hz(problem_.measured[mac_rows_[a]].frequency_hz);
-    for (size_t b = 0; b < free_columns.size(); ++b) {
-      const double ratio = std::abs(lambda()[free_columns[b]]) / target;
-      score(a, b) = mac_table_(mac_rows_[a], free_columns[b]) - kMacTieWeight * std::abs(std::log(std::max(ratio, 1e-300)));
-    }
-  }
-  const std::vector<int> assigned = detail::maximize_assignment(score);
-  for (size_t a = 0; a < mac_rows_.size(); ++a) model_of_[mac_rows_[a]] = free_columns[assigned[a]];
 }
 
 void Objective::Evaluator::residuals_and_value() {
   const ObjectiveOptions& options = o_.options_;
   const int ns = num_sensors();
   e_.residuals = Vector::Zero(o_.num_residuals_);
+  e_.pairs = detail::paired_modes(problem_, e_.modal, model_of_, mac_table_);
+  for (std::string& warning :
+       detail::close_eigenvalue_warnings(problem_, e_.modal, model_of_, options.close_eigenvalue_tolerance))
+    e_.warnings.push_back(std::move(warning) + ": its derivatives are ill defined there");
   int row = 0;
   for (int i = 0; i < num_measured(); ++i) {
     const MeasuredMode& m = problem_.measured[i];
-    const int k = model_of_[i];
-    const double target = eigenvalue_of_hz(m.frequency_hz);
-    PairedMode pair;
-    pair.measured = i;
-    pair.model = k;
-    pair.measured_hz = m.frequency_hz;
-    pair.model_hz = frequency_hz(lambda()[k]);
-    pair.relative_error = (lambda()[k] - target) / target;
-    pair.mac = m.shape.size() ? mac_table_(i, k) : -1;
-    e_.pairs.push_back(pair);
-    const double r = eigenvalue_residual(lambda()[k], target, options.eigenvalue_misfit).r;
+    const double r = eigenvalue_residual(lambda()[model_of_[i]], eigenvalue_of_hz(m.frequency_hz), options.eigenvalue_misfit).r;
     e_.residuals[row++] = std::sqrt(m.weight) * r;
     e_.eigenvalue_term += 0.5 * m.weight * r * r;
-    for (int n : {k - 1, k + 1})
-      if (n >= 0 && n < num_model() && std::abs(lambda()[n] - lambda()[k]) < options.close_eigenvalue_tolerance * lambda()[k])
-        e_.warnings.push_back(describe_measured(m, i) + " is paired with model mode " + std::to_string(k + 1) +
-                              ", whose eigenvalue nearly repeats that of mode " + std::to_string(n + 1) +
-                              ": its derivatives are ill defined there");
   }
   for (int i = 0; i < num_measured(); ++i) {
     const MeasuredMode& m = problem_.measured[i];
