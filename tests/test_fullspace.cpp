@@ -415,6 +415,17 @@ TEST(FullSpaceDriver, AnAttemptStopsAtTheRoundingFloorButNotWhileNewtonStillConv
   }
 }
 
+// Steps 2-4: the Newton phase from a start near the truth converges to it, guarded and checked.
+TEST(FullSpaceDriver, TheNewtonPhaseConvergesToTheTruthFromNearIt) {
+  DriverAt d(1.02);
+  ASSERT_FALSE(d.start_failed);
+  const detail::FullSpaceDriver::Outcome outcome = d.driver.solve_from(d.p);
+  EXPECT_EQ(outcome.status, FullSpaceStatus::Converged) << outcome.message;
+  EXPECT_TRUE(d.driver.summary().mode_check.passed) << d.driver.summary().mode_check.reason;
+  EXPECT_LT(MaxRelativeError(d.driver.summary().final, d.problem.truth_values()), 1e-6);
+  EXPECT_GT(d.driver.summary().iterations, 0);
+}
+
 // Step 4: the final check calls "wrong modes" an end point that the Newton solver called
 // converged but whose u_i are not the paired modes, and "converged" the forward solution.
 TEST(FullSpaceDriver, VerifyTellsTheRightModesFromSwappedOnes) {
