@@ -90,6 +90,7 @@
 #include "modalcal/residual_test.hpp"
 #include "modalcal/synthesis.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/reduced.hpp"
 #include "support/random_draws.hpp"
 
 using namespace modalcal;
@@ -296,6 +297,25 @@ MeasuredData synthesize(const ProblemContext& ctx, const TruthModel& truth, cons
   // sensor points snapped to its nodes, in the same order), as `synth --refine` does.
   if (mesh && mesh != &ctx.problem) return synthesize_measured_data(*mesh, truth, mesh->sensors, options);
   return synthesize_measured_data(ctx.problem, truth, ctx.problem.sensors, options);
+}
+
+/// The chi-square of the truth model itself (its effects at their true values), calibrated from
+/// the true parameter values against the case's data: about what the right effect's refit can
+/// reach, an oracle no diagnosis has. Below the diagnosis's final chi-square, the data favour the
+/// truth over what was accepted; above it, they favour the accepted effect, and no rule that
+/// reads the data could have named the truth.
+double truth_model_chi2(const Problem& problem, const TruthModel& truth, const MeasuredData& data) {
+  Problem p = problem;  // the calibration parameters, the case's data
+  p.model = truth.problem.model;
+  const Problem weighted = noise_weighted(p, *data.noise);
+  Objective objective(weighted);
+  Vector p0(static_cast<Eigen::Index>(weighted.parameters.size()));
+  for (size_t i = 0; i < weighted.parameters.size(); ++i)
+    p0[static_cast<Eigen::Index>(i)] = weighted.parameters[i].truth.value_or(weighted.parameters[i].initial);
+  const ReducedSummary fit = minimize_reduced(objective, p0, ReducedOptions());
+  const Evaluation e = objective.evaluate(fit.final.size() == p0.size() ? fit.final : p0);
+  if (!e.ok) return NAN;
+  return test_residual(objective, e, *data.noise, static_cast<int>(p0.size())).statistic;
 }
 
 /// Moves the elements of `block` whose centroid lies within `radius` of `center` into a new block
@@ -826,6 +846,7 @@ struct Outcome {
   bool named_right = false;  // the first step's effect or one of its alternatives is a truth effect
   int spurious = 0;  // kept effects that match no truth effect
   double p_before = NAN, p_final = NAN, chi2_before = NAN, chi2_final = NAN;
+  double chi2_truth = NAN;  // truth_model_chi2(), for truths on the problem's own mesh
   double value_error = NAN;
   double wall = 0, cpu = 0, case_wall = 0, case_cpu = 0;
   std::string recommendation;
@@ -846,6 +867,7 @@ struct Args {
   std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
+  int place_refits = RankingOptions().place_refits;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
@@ -858,9 +880,10 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
-      "                    [--mesh-check R] [--refits N] [--no-kind-prior] [--print-diagnosis]\n"
+      "                    [--mesh-check R] [--refits N] [--place-refits N] [--no-kind-prior] [--print-diagnosis]\n"
       "                    [--stop-when-consistent]\n"
-      "  --refits, --no-kind-prior: RankingOptions::refits and equal_kind_prior (defaults: diagnose's);\n"
+      "  --refits, --place-refits, --no-kind-prior: RankingOptions::refits, place_refits and\n"
+      "  equal_kind_prior (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
@@ -913,6 +936,7 @@ int main(int argc, char** argv) {
       else if (a == "--significance") args.significance = std::stod(next());
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
+      else if (a == "--place-refits") args.place_refits = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--print-diagnosis") args.print_diagnosis = true;
@@ -951,9 +975,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1042,6 +1066,7 @@ int main(int argc, char** argv) {
           DiagnosisOptions options;
           options.ranking.significance = args.significance;
           options.ranking.refits = args.refits;
+          options.ranking.place_refits = args.place_refits;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.test.significance = args.significance;
@@ -1102,6 +1127,7 @@ int main(int argc, char** argv) {
                   o.named_right = true;
               }
           }
+          if (c.fine_ratio == 0 && !c.effects.empty()) o.chi2_truth = truth_model_chi2(problem, truth, data);
           if (args.print_diagnosis) std::fprintf(stderr, "=== case %d\n%s\n", k, format_diagnosis(problem, d).c_str());
           for (const DiagnosisStep& s : d.steps) {
             json sj;
@@ -1173,6 +1199,7 @@ int main(int argc, char** argv) {
         cj["p_final"] = o.p_final;
         cj["chi2_before"] = o.chi2_before;
         cj["chi2_final"] = o.chi2_final;
+        cj["chi2_truth_model"] = std::isfinite(o.chi2_truth) ? json(o.chi2_truth) : json();
         cj["value_error"] = o.value_error;
         cj["recommendation"] = o.recommendation;
         cj["diagnosis_wall_s"] = o.wall;

@@ -110,9 +110,10 @@ struct MODALCAL_EXPORT DiagnosisStep {
   int screened = 0;             ///< candidates screened in the step
   double critical_value = 0;    ///< of the step's likelihood-ratio test
   std::optional<Vec3> location;  ///< effect_location(); none for a block-wide effect
-  /// The step's other significant refits whose score S (effects.hpp, "Which effect") is within
-  /// DiagnosisStep::kAlternativeMargin of the accepted one's: effects these data hardly tell
-  /// from it (posterior odds below about 20 to 1).
+  /// The step's other significant refits whose likelihood-ratio statistic (ΔX²) is within
+  /// DiagnosisStep::kAlternativeMargin of the accepted one's, or above it: effects these data
+  /// hardly tell from it (a likelihood ratio below about 20 to 1), the prior over kinds
+  /// (effects.hpp, "Which effect") left aside, since it is what chose between them.
   std::vector<RankedEffect> alternatives;
   static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
   /// For an exchange (Diagnosis::exchanges): the accepted effect this one replaced, and that

@@ -178,10 +178,20 @@ MODALCAL_EXPORT Problem problem_with_effects(const Problem& problem, const std::
 /// block's property, which acts on the whole block.
 /// \throws std::invalid_argument if its change does not apply to `model`.
 MODALCAL_EXPORT std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate);
+/// Where a candidate acts, block-wide ones included: effect_location(), or the centroid of the
+/// block's nodes for a block's property.
+MODALCAL_EXPORT std::optional<Vec3> effect_place(const Model& model, const EffectCandidate& candidate);
 
 struct MODALCAL_EXPORT RankingOptions {
   /// How many of the best-predicted candidates are refitted. Range: >= 0.
   int refits = 3;
+  /// Further refits for hypotheses elsewhere: the best-predicted candidates whose place lies
+  /// farther than a quarter of the model's size from every candidate chosen before, while their
+  /// prediction is at least `place_refit_share` of the best one's. Mirror-image parts of a
+  /// symmetric structure predict alike to first order and part only in the refit. Range: >= 0.
+  int place_refits = 2;
+  /// Range: (0, 1].
+  double place_refit_share = 0.7;
   /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
   /// by ΔX² alone (every candidate equally likely a priori).
   bool equal_kind_prior = true;

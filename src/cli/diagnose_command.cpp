@@ -28,6 +28,7 @@ struct DiagnoseArgs {
   double start_factor = 1;
   double refine = 0;
   int refits = RankingOptions().refits;
+  int place_refits = RankingOptions().place_refits;
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
@@ -358,6 +359,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;
+  options.ranking.place_refits = args.place_refits;
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
@@ -478,6 +480,9 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
       ->check(positive_number());
   cmd->add_option("--refits", args->refits, "refit this many of the best-predicted effects (default 3)")
+      ->check(non_negative_number());
+  cmd->add_option("--place-refits", args->place_refits,
+                  "then refit this many more, each the best-predicted effect apart from those chosen (default 2)")
       ->check(non_negative_number());
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")

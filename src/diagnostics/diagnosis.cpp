@@ -219,7 +219,9 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
   step.location = effect_location(model, best.candidate);
   for (size_t k = 1; k < ranking.effects.size(); ++k) {
     const RankedEffect& other = ranking.effects[k];
-    if (other.refitted && other.significant && other.score() > best.score() - DiagnosisStep::kAlternativeMargin)
+    // The data's verdict alone, without the prior over kinds: a likelihood ratio below 20 : 1,
+    // or one in the other's favour that the prior overruled.
+    if (other.refitted && other.significant && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin)
       step.alternatives.push_back(other);
   }
   return step;

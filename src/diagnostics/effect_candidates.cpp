@@ -593,4 +593,10 @@ std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& c
   return centroid(changed, nodes_of(changed, entity));
 }
 
+std::optional<Vec3> effect_place(const Model& model, const EffectCandidate& candidate) {
+  if (std::optional<Vec3> at = effect_location(model, candidate)) return at;
+  const std::string entity = candidate.name.substr(0, candidate.name.rfind('.'));
+  return centroid(model, nodes_of(model, entity));
+}
+
 }  // namespace modalcal

@@ -141,6 +141,40 @@ std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int
   return chosen;
 }
 
+/// The model's size: the diagonal of its nodes' bounding box.
+double model_size(const Model& model) {
+  if (model.coordinates.empty()) return 0;
+  Vec3 low = model.coordinates.front(), high = low;
+  for (const Vec3& x : model.coordinates) {
+    low = low.cwiseMin(x);
+    high = high.cwiseMax(x);
+  }
+  return (high - low).norm();
+}
+
+/// Adds to `chosen` up to RankingOptions::place_refits candidates of `screened` (in order of
+/// prediction) that act apart from every one chosen before: farther than a quarter of the
+/// model's size, with a prediction at least place_refit_share of the best.
+void add_place_refits(const Model& model, const std::vector<RankedEffect>& screened, const RankingOptions& options,
+                      std::vector<size_t>* chosen) {
+  if (screened.empty() || options.place_refits == 0) return;
+  const double apart = model_size(model) / 4, least = options.place_refit_share * screened.front().predicted_reduction;
+  std::vector<Vec3> places;
+  for (size_t c : *chosen)
+    if (std::optional<Vec3> at = effect_place(model, screened[c].candidate)) places.push_back(*at);
+  int added = 0;
+  for (size_t k = 0; k < screened.size() && added < options.place_refits; ++k) {
+    if (!(screened[k].predicted_reduction >= least)) break;
+    if (std::find(chosen->begin(), chosen->end(), k) != chosen->end()) continue;
+    const std::optional<Vec3> at = effect_place(model, screened[k].candidate);
+    if (!at || std::any_of(places.begin(), places.end(), [&](const Vec3& p) { return (p - *at).norm() <= apart; }))
+      continue;
+    chosen->push_back(k);
+    places.push_back(*at);
+    ++added;
+  }
+}
+
 /// One refit (every calibration parameter free, the effect started at its first-order value or
 /// its declared start), as a TaskMap result: the optimizer's outcome, then whether the refitted
 /// model could be evaluated, and its misfit.
@@ -331,7 +365,9 @@ void refit_best(const Problem& problem, const RankingOptions& options, const Eff
                 std::vector<RankedEffect>* screened) {
   const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
   std::vector<size_t> chosen;
-  for (size_t k : refit_choices(*screened, options.refits))
+  std::vector<size_t> choices = refit_choices(*screened, options.refits);
+  add_place_refits(problem.model, *screened, options, &choices);
+  for (size_t k : choices)
     if ((*screened)[k].predicted_reduction > 0 || (*screened)[k].candidate.initial) chosen.push_back(k);
   const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> outcomes =
@@ -409,6 +445,9 @@ bool RankingOptions::IsValid(std::string* error) const {
     return false;
   };
   if (refits < 0) return bad("refits = " + std::to_string(refits) + ": must be >= 0");
+  if (place_refits < 0) return bad("place_refits = " + std::to_string(place_refits) + ": must be >= 0");
+  if (!(place_refit_share > 0 && place_refit_share <= 1))
+    return bad("place_refit_share = " + std::to_string(place_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
     return bad("significance = " + std::to_string(significance) + ": must be in (0, 0.5)");
   std::string inner;
