@@ -378,8 +378,16 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   ASSERT_EQ(d["steps"].size(), 1u) << d["steps"].dump();
   const nlohmann::json& step = d["steps"][0];
   for (const char* key : {"step", "name", "description", "change", "location", "value", "standard_error",
-                          "chi2_before", "chi2_after", "p_value_after", "delta_bic"})
+                          "chi2_before", "chi2_after", "p_value_after", "delta_bic", "alternatives"})
     EXPECT_TRUE(step.contains(key)) << key;
+  for (const auto& a : step["alternatives"]) {
+    ASSERT_TRUE(a.contains("tell_apart")) << a.dump();
+    const auto& reading = a["tell_apart"]["reading"];
+    if (!reading.is_null()) {
+      for (const char* key : {"node", "location", "direction", "measured_mode", "separation"})
+        EXPECT_TRUE(reading.contains(key)) << key;
+    }
+  }
   EXPECT_EQ(step["name"], "added_mass_tip.mass");
   ASSERT_TRUE(step["location"].is_array());
   EXPECT_NEAR(step["location"][0].get<double>(), 4, 1e-12);  // the tip is the face x = 4

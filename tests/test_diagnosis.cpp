@@ -366,6 +366,45 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
   EXPECT_NE(why.find("place_refit_share"), std::string::npos);
 }
 
+// Two refits of one ranking, compared where no sensor is: a refit against itself differs
+// nowhere; two different effects differ at some surface reading and in some unmeasured mode,
+// in units of the stated noise (half the noise, twice the separation).
+TEST(TellApart, NamesTheReadingAndTheModeWhereTwoRefitsDiffer) {
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  Objective objective(problem);
+  const ReducedSummary calibration =
+      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
+  const EffectRanking ranking = rank_effects(problem, calibration.final, generate_candidates(problem));
+  ASSERT_TRUE(ranking.effects.size() >= 2 && ranking.effects[0].refitted && ranking.effects[1].refitted);
+  const RankedEffect &a = ranking.effects[0], &b = ranking.effects[1];
+
+  const TellApart same = tell_apart(problem, a, a);
+  EXPECT_EQ(same.node, -1);
+  EXPECT_NEAR(same.shape_separation, 0, 1e-9);
+  EXPECT_NEAR(same.frequency_separation, 0, 1e-9);
+
+  const TellApart t = tell_apart(problem, a, b);
+  EXPECT_EQ(t.alternative, b.candidate.name);
+  ASSERT_GE(t.node, 0);
+  EXPECT_GT(t.shape_separation, 0);
+  EXPECT_TRUE(t.component >= 0 && t.component < 3);
+  EXPECT_TRUE(t.measured >= 0 && t.measured < static_cast<int>(problem.measured.size()));
+  EXPECT_NEAR((t.location - problem.model.coordinates[static_cast<size_t>(t.node)]).norm(), 0, 1e-12);
+  ASSERT_GE(t.model_mode, 0);  // the assembly computes 8 modes and 7 are measured
+  EXPECT_GT(t.model_hz, 0);
+
+  Problem quieter = problem;
+  quieter.measurement_noise = MeasurementNoise{0.001, 0.01, 1};
+  const TellApart q = tell_apart(quieter, a, b);
+  EXPECT_NEAR(q.shape_separation / t.shape_separation, 2, 1e-9);
+  EXPECT_NEAR(q.frequency_separation / t.frequency_separation, 2, 1e-9);
+  EXPECT_EQ(q.node, t.node);
+
+  Problem silent = problem;
+  silent.measurement_noise.reset();
+  EXPECT_THROW(tell_apart(silent, a, b), std::invalid_argument);
+}
+
 TEST(EffectRanking, AOneSidedEffectDoesNotHelpByANegativeValue) {
   // The truth is lighter at the tip than the model: an added mass there could only help with a
   // negative mass, which its bounds forbid, so its prediction is 0.
@@ -439,13 +478,17 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
       EXPECT_FALSE(s.location);
     }
   }
-  // A step's alternatives are the other significant refits that score almost as well.
-  for (const DiagnosisStep& s : d.steps)
+  // A step's alternatives are the other significant refits the data hardly tell from it (the
+  // prior ranked them below it), each with what would tell them apart.
+  for (const DiagnosisStep& s : d.steps) {
     for (const RankedEffect& a : s.alternatives) {
       EXPECT_TRUE(a.refitted && a.significant) << a.candidate.name;
       EXPECT_LE(a.score(), s.effect.score()) << a.candidate.name;
-      EXPECT_GT(a.score(), s.effect.score() - DiagnosisStep::kAlternativeMargin) << a.candidate.name;
+      EXPECT_GT(a.statistic, s.effect.statistic - DiagnosisStep::kAlternativeMargin) << a.candidate.name;
     }
+    ASSERT_EQ(s.tell_apart.size(), s.alternatives.size());
+    for (size_t k = 0; k < s.alternatives.size(); ++k) EXPECT_EQ(s.tell_apart[k].alternative, s.alternatives[k].candidate.name);
+  }
   // Both values near the truth at the end (the final refit has every effect free).
   const Problem with = problem_with_diagnosed_effects(hidden, d);
   EXPECT_NEAR(d.final_parameters[with.find_parameter("j.krx")], 20, 3) << report;

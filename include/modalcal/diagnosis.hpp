@@ -102,6 +102,35 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   static ReducedOptions default_calibration_options();
 };
 
+/// What further measurement would tell two explanations of the same data apart: the sensor
+/// reading not yet taken, and the mode not yet measured, where the models of the two refits
+/// differ most, each in units of the stated noise.
+///
+/// A reading's separation: each model's shape of a measured mode, scaled so that its largest
+/// value at the present sensors is 1 (the scale the shape noise σ_φ refers to) and signed alike
+/// at the sensors, differs at the reading by d; separation = d / σ_φ. A mode's: the relative
+/// difference of the two models' frequencies of an elastic mode paired with no measured one,
+/// over σ_f. Only free translational DOFs of surface and interface nodes are considered.
+struct MODALCAL_EXPORT TellApart {
+  std::string alternative;  ///< the alternative's candidate name
+  int node = -1;            ///< 0-based model node of the best reading; -1 if none
+  int component = 0;        ///< 0..2 = x, y, z
+  Vec3 location = Vec3::Zero();
+  int measured = -1;              ///< 0-based index of the measured mode whose shape differs there
+  double shape_separation = 0;    ///< in noise standard deviations
+  int model_mode = -1;            ///< 0-based elastic mode of the best unmeasured frequency; -1 if none
+  double model_hz = 0;            ///< its frequency with the accepted effect
+  double frequency_separation = 0;  ///< in noise standard deviations
+};
+
+/// How to tell `accepted` from `alternative`, two refits of one ranking of `problem` (their
+/// `parameters`: `problem`'s, then the effect's value). Needs a stated noise
+/// (`problem.measurement_noise`, σ_f and σ_φ > 0 for the respective part).
+/// \throws std::invalid_argument without a stated noise, or if either refit's parameters do not
+///   fit `problem`; std::runtime_error if either model cannot be solved.
+MODALCAL_EXPORT TellApart tell_apart(const Problem& problem, const RankedEffect& accepted,
+                                     const RankedEffect& alternative);
+
 /// One effect accepted by a forward step of the loop.
 struct MODALCAL_EXPORT DiagnosisStep {
   int step = 0;        ///< 1-based
@@ -115,6 +144,8 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// hardly tell from it (a likelihood ratio below about 20 to 1), the prior over kinds
   /// (effects.hpp, "Which effect") left aside, since it is what chose between them.
   std::vector<RankedEffect> alternatives;
+  /// One per alternative, in the same order (tell_apart()); empty without a stated noise.
+  std::vector<TellApart> tell_apart;
   static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
   /// For an exchange (Diagnosis::exchanges): the accepted effect this one replaced, and that
   /// effect's score S in the same screen; empty and NaN for a forward step.
@@ -209,8 +240,9 @@ MODALCAL_EXPORT std::string format_diagnosis(const Problem& problem, const Diagn
 MODALCAL_EXPORT std::string format_discretization(const DiscretizationEstimate& estimate);
 
 /// The stepwise loop as text: the misfit at the start, after each accepted effect (its value,
-/// standard error, place and test), the effects the backward pass dropped, and at the end.
-MODALCAL_EXPORT std::string format_steps(const Diagnosis& diagnosis);
+/// standard error, place, test, the alternatives and what would tell them apart), the effects
+/// the backward pass dropped, and at the end. `problem` names the nodes and the measured modes.
+MODALCAL_EXPORT std::string format_steps(const Problem& problem, const Diagnosis& diagnosis);
 
 /// `problem` (unweighted) with the diagnosis's kept effects as parameters after its own, every
 /// parameter starting at the diagnosis's final value: what `calibrate` continues from.

@@ -133,17 +133,35 @@ nlohmann::json location_json(const std::optional<Vec3>& location) {
   return {(*location)[0], (*location)[1], (*location)[2]};
 }
 
-nlohmann::json alternatives_json(const std::vector<RankedEffect>& alternatives) {
+/// What would tell a step's effect from an alternative (null where nothing was found).
+nlohmann::json tell_apart_json(const Problem& problem, const TellApart& t) {
+  nlohmann::json reading, mode;
+  if (t.node >= 0 && t.measured >= 0)
+    reading = {{"node", problem.model.node_ids[static_cast<size_t>(t.node)]},
+               {"location", {t.location[0], t.location[1], t.location[2]}},
+               {"direction", std::string(1, "xyz"[t.component])},
+               {"measured_mode", problem.measured[static_cast<size_t>(t.measured)].label},
+               {"separation", json_number(t.shape_separation)}};
+  if (t.model_mode >= 0)
+    mode = {{"model_mode", t.model_mode + 1}, {"model_hz", json_number(t.model_hz)},
+            {"separation", json_number(t.frequency_separation)}};
+  return {{"reading", reading}, {"unmeasured_mode", mode}};
+}
+
+nlohmann::json alternatives_json(const Problem& problem, const DiagnosisStep& s) {
   nlohmann::json list = nlohmann::json::array();
-  for (const RankedEffect& a : alternatives)
+  for (size_t k = 0; k < s.alternatives.size(); ++k) {
+    const RankedEffect& a = s.alternatives[k];
     list.push_back({{"name", a.candidate.name},
                     {"value", json_number(a.value)},
                     {"chi2_after", json_number(a.chi2_after)},
-                    {"score", json_number(a.score())}});
+                    {"score", json_number(a.score())},
+                    {"tell_apart", k < s.tell_apart.size() ? tell_apart_json(problem, s.tell_apart[k]) : nlohmann::json()}});
+  }
   return list;
 }
 
-nlohmann::json step_json(const DiagnosisStep& s) {
+nlohmann::json step_json(const Problem& problem, const DiagnosisStep& s) {
   const RankedEffect& e = s.effect;
   return {{"step", s.step},
           {"name", e.candidate.name},
@@ -159,7 +177,7 @@ nlohmann::json step_json(const DiagnosisStep& s) {
           {"score", json_number(e.score())},
           {"critical_value", s.critical_value},
           {"screened", s.screened},
-          {"alternatives", alternatives_json(s.alternatives)}};
+          {"alternatives", alternatives_json(problem, s)}};
 }
 
 /// The first step's ranking: every screened candidate, refitted or not.
@@ -201,13 +219,13 @@ nlohmann::json discretization_json(const Diagnosis& d) {
 }
 
 /// The stepwise loop: forward steps, exchanges, what was kept and dropped, the residual at the end.
-void add_loop_json(const Diagnosis& d, nlohmann::json* out) {
+void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* out) {
   nlohmann::json& json = *out;
   json["steps"] = nlohmann::json::array();
-  for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(s));
+  for (const DiagnosisStep& s : d.steps) json["steps"].push_back(step_json(problem, s));
   json["exchanges"] = nlohmann::json::array();
   for (const DiagnosisStep& x : d.exchanges) {
-    nlohmann::json e = step_json(x);
+    nlohmann::json e = step_json(problem, x);
     e["replaces"] = x.replaces;
     e["replaced_score"] = json_number(x.replaced_score);
     json["exchanges"].push_back(e);
@@ -264,7 +282,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   json["set_aside"] = nlohmann::json::array();
   for (const auto& [name, why] : ranking.set_aside) json["set_aside"].push_back({{"name", name}, {"reason", why}});
   json["discretization"] = discretization_json(d);
-  add_loop_json(d, &json);
+  add_loop_json(problem, d, &json);
   json["map"] = {{"node_candidates", d.map.node_candidates},
                  {"region_candidates", d.map.region_candidates},
                  {"places", nlohmann::json::array()}};

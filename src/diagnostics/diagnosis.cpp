@@ -227,6 +227,22 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
   return step;
 }
 
+/// How a further measurement would tell the step's effect from each alternative (with a stated
+/// noise). Advice only: a pair whose models cannot be solved gets an entry that names no reading
+/// and no mode.
+void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
+  if (!problem.measurement_noise) return;
+  for (const RankedEffect& alternative : step->alternatives) {
+    try {
+      step->tell_apart.push_back(tell_apart(problem, step->effect, alternative));
+    } catch (const std::exception&) {
+      TellApart none;
+      none.alternative = alternative.candidate.name;
+      step->tell_apart.push_back(none);
+    }
+  }
+}
+
 /// One forward step: screens the candidates of the model as it now is and accepts the best
 /// refit when it is significant. Returns false when nothing was accepted.
 bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
@@ -238,6 +254,7 @@ bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOption
   const RankedEffect* best = acceptable(ranking);
   if (!may_accept || !best) return false;
   d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1));
+  add_tell_apart(state->problem, &d->steps.back());
   std::vector<EffectCandidate> effects = state->effects;
   effects.push_back(best->candidate);
   *state = make_state(fitted, effects, best->parameters, options.test);
@@ -582,7 +599,7 @@ std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   text += "a second view, the residual forces of the expanded measured shapes:\n";
   text += d.localization ? format_ranking(*d.localization, 5) : d.localization_note + "\n";
   text += "\nwhich effect is missing (the first step's screen):\n" + format_effect_ranking(d.ranking, 10);
-  text += "\n" + format_steps(d);
+  text += "\n" + format_steps(problem, d);
   text += "\n" + d.recommendation + "\n";
   if (d.after) {
     const Problem with = problem_with_diagnosed_effects(problem, d);
@@ -615,7 +632,26 @@ std::string format_discretization(const DiscretizationEstimate& est) {
   return text + line;
 }
 
-std::string format_steps(const Diagnosis& d) {
+/// The reading and the unmeasured mode that would tell a step's effect from an alternative.
+std::string tell_apart_text(const Problem& problem, const TellApart& t) {
+  std::string text;
+  char b[320];
+  if (t.node >= 0 && t.measured >= 0 && static_cast<size_t>(t.measured) < problem.measured.size()) {
+    std::snprintf(b, sizeof b, "a reading at node %ld [%.4g, %.4g, %.4g] along %c in %s (%.2g noise sd apart)",
+                  problem.model.node_ids[static_cast<size_t>(t.node)], t.location[0], t.location[1], t.location[2],
+                  "xyz"[t.component], problem.measured[static_cast<size_t>(t.measured)].label.c_str(), t.shape_separation);
+    text += b;
+  }
+  if (t.model_mode >= 0) {
+    std::snprintf(b, sizeof b, "%smodel mode %d at %.4g Hz, not measured (%.2g noise sd apart)", text.empty() ? "" : "; ",
+                  t.model_mode + 1, t.model_hz, t.frequency_separation);
+    text += b;
+  }
+  if (text.empty()) return "              nothing this model computes tells them apart\n";
+  return "              to tell them apart: " + text + "\n";
+}
+
+std::string format_steps(const Problem& problem, const Diagnosis& d) {
   std::string text = "the stepwise loop (" + chi2_text(d.noise_known) + " after each accepted effect):\n";
   char line[400];
   auto fit_text = [&](const FitState& fit) {
@@ -641,10 +677,12 @@ std::string format_steps(const Diagnosis& d) {
                   where.c_str(), s.chi2_before, s.effect.chi2_after, s.effect.achieved_reduction, s.critical_value,
                   s.screened);
     text += line;
-    for (const RankedEffect& a : s.alternatives) {
+    for (size_t k = 0; k < s.alternatives.size(); ++k) {
+      const RankedEffect& a = s.alternatives[k];
       std::snprintf(line, sizeof line, "            the data hardly tell it from %s = %.4g (%.4g -> %.4g)\n",
                     a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
       text += line;
+      if (k < s.tell_apart.size()) text += tell_apart_text(problem, s.tell_apart[k]);
     }
   }
   for (const DiagnosisStep& x : d.exchanges) {

@@ -12,10 +12,60 @@
 
 #include "modalcal/block_geometry.hpp"
 #include "modalcal/effects.hpp"
+#include "model_surface.hpp"
 
 namespace modalcal {
 
+namespace detail {
+
+/// fixed[v][c]: DOF c of node v is fixed.
+std::vector<std::array<bool, 6>> fixed_dofs(const Model& model) {
+  std::vector<std::array<bool, 6>> fixed(model.num_nodes(), {false, false, false, false, false, false});
+  for (const FixedDofs& f : model.fixed)
+    for (int v : f.nodes)
+      for (int c = 0; c < 6; ++c) fixed[v][c] = fixed[v][c] || f.components[c];
+  return fixed;
+}
+
+/// The free nodes on the model's surfaces (element sides no other element shares) and on the
+/// interfaces between blocks (nodes of two or more blocks), in index order.
+std::vector<int> surface_and_interface_nodes(const Model& model, const std::vector<std::array<bool, 6>>& fixed) {
+  std::map<std::vector<int>, int> side_count;
+  std::vector<int> blocks_of_node(model.num_nodes(), -1);
+  std::vector<bool> chosen(model.num_nodes(), false);
+  for (size_t b = 0; b < model.blocks.size(); ++b) {
+    const ElementBlock& block = model.blocks[b];
+    const int npe = nodes_per_element(block.type);
+    for (int e = 0; e < block.num_elements(); ++e) {
+      for (int k = 0; k < npe; ++k) {
+        const int v = block.connectivity[e * npe + k];
+        if (blocks_of_node[v] >= 0 && blocks_of_node[v] != static_cast<int>(b)) chosen[v] = true;  // an interface
+        blocks_of_node[v] = static_cast<int>(b);
+      }
+      for (int side = 1; side <= num_solid_sides(block.type); ++side) {
+        std::vector<int> key;
+        for (int k : solid_side_nodes(block.type, side)) key.push_back(block.connectivity[e * npe + k]);
+        std::sort(key.begin(), key.end());
+        ++side_count[key];
+      }
+    }
+  }
+  for (const auto& [nodes, count] : side_count)
+    if (count == 1)
+      for (int v : nodes) chosen[v] = true;
+  std::vector<int> out;
+  for (int v = 0; v < model.num_nodes(); ++v)
+    if (chosen[v] && !(fixed[v][0] && fixed[v][1] && fixed[v][2])) out.push_back(v);
+  return out;
+}
+
+}  // namespace detail
+
 namespace {
+
+using detail::fixed_dofs;
+using detail::surface_and_interface_nodes;
+
 
 
 /// Stiffness, mass and element size of the blocks, and which blocks each node belongs to: the
@@ -85,15 +135,6 @@ class ModelScales {
   std::map<int, std::vector<int>> coupled_;
 };
 
-/// fixed[v][c]: DOF c of node v is fixed.
-std::vector<std::array<bool, 6>> fixed_dofs(const Model& model) {
-  std::vector<std::array<bool, 6>> fixed(model.num_nodes(), {false, false, false, false, false, false});
-  for (const FixedDofs& f : model.fixed)
-    for (int v : f.nodes)
-      for (int c = 0; c < 6; ++c) fixed[v][c] = fixed[v][c] || f.components[c];
-  return fixed;
-}
-
 std::string node_set_place(const NodeSet& set) { return set.name; }
 std::string node_place(const Model& model, int v) { return "#" + std::to_string(model.node_ids[v]); }
 
@@ -137,38 +178,6 @@ std::optional<Vec3> centroid(const Model& model, const std::vector<int>& nodes) 
   Vec3 sum = Vec3::Zero();
   for (int v : nodes) sum += model.coordinates[v];
   return Vec3(sum / static_cast<double>(nodes.size()));
-}
-
-/// The free nodes on the model's surfaces (element sides no other element shares) and on the
-/// interfaces between blocks (nodes of two or more blocks), in index order.
-std::vector<int> surface_and_interface_nodes(const Model& model, const std::vector<std::array<bool, 6>>& fixed) {
-  std::map<std::vector<int>, int> side_count;
-  std::vector<int> blocks_of_node(model.num_nodes(), -1);
-  std::vector<bool> chosen(model.num_nodes(), false);
-  for (size_t b = 0; b < model.blocks.size(); ++b) {
-    const ElementBlock& block = model.blocks[b];
-    const int npe = nodes_per_element(block.type);
-    for (int e = 0; e < block.num_elements(); ++e) {
-      for (int k = 0; k < npe; ++k) {
-        const int v = block.connectivity[e * npe + k];
-        if (blocks_of_node[v] >= 0 && blocks_of_node[v] != static_cast<int>(b)) chosen[v] = true;  // an interface
-        blocks_of_node[v] = static_cast<int>(b);
-      }
-      for (int side = 1; side <= num_solid_sides(block.type); ++side) {
-        std::vector<int> key;
-        for (int k : solid_side_nodes(block.type, side)) key.push_back(block.connectivity[e * npe + k]);
-        std::sort(key.begin(), key.end());
-        ++side_count[key];
-      }
-    }
-  }
-  for (const auto& [nodes, count] : side_count)
-    if (count == 1)
-      for (int v : nodes) chosen[v] = true;
-  std::vector<int> out;
-  for (int v = 0; v < model.num_nodes(); ++v)
-    if (chosen[v] && !(fixed[v][0] && fixed[v][1] && fixed[v][2])) out.push_back(v);
-  return out;
 }
 
 /// Turns model changes (their values ignored) into candidates with the rules of effects.hpp.
