@@ -158,6 +158,9 @@ struct MODALCAL_EXPORT Model {
   void validate() const;
 };
 
+/// The diagonal of the bounding box of `model`'s nodes: its size (0 without nodes).
+MODALCAL_EXPORT double bounding_box_diagonal(const Model& model);
+
 /// Name of a global direction index 0..5 ("x", "y", "z", "rx", "ry", "rz").
 MODALCAL_EXPORT std::string component_name(int component);
 /// Inverse of component_name; -1 if unknown.

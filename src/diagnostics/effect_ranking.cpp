@@ -141,24 +141,13 @@ std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int
   return chosen;
 }
 
-/// The model's size: the diagonal of its nodes' bounding box.
-double model_size(const Model& model) {
-  if (model.coordinates.empty()) return 0;
-  Vec3 low = model.coordinates.front(), high = low;
-  for (const Vec3& x : model.coordinates) {
-    low = low.cwiseMin(x);
-    high = high.cwiseMax(x);
-  }
-  return (high - low).norm();
-}
-
 /// Adds to `chosen` up to RankingOptions::place_refits candidates of `screened` (in order of
 /// prediction) that act apart from every one chosen before: farther than a quarter of the
 /// model's size, with a prediction at least place_refit_share of the best.
 void add_place_refits(const Model& model, const std::vector<RankedEffect>& screened, const RankingOptions& options,
                       std::vector<size_t>* chosen) {
   if (screened.empty() || options.place_refits == 0) return;
-  const double apart = model_size(model) / 4, least = options.place_refit_share * screened.front().predicted_reduction;
+  const double apart = bounding_box_diagonal(model) / 4, least = options.place_refit_share * screened.front().predicted_reduction;
   std::vector<Vec3> places;
   for (size_t c : *chosen)
     if (std::optional<Vec3> at = effect_place(model, screened[c].candidate)) places.push_back(*at);

@@ -15,16 +15,6 @@ namespace {
 
 std::string number_text(double v) { return detail::number_text(v, 4); }
 
-double bounding_box_diagonal(const Model& model) {
-  if (model.coordinates.empty()) return 0;
-  Vec3 lo = model.coordinates.front(), hi = lo;
-  for (const Vec3& x : model.coordinates) {
-    lo = lo.cwiseMin(x);
-    hi = hi.cwiseMax(x);
-  }
-  return (hi - lo).norm();
-}
-
 /// The nearest model node to x (ties to the lower index) and its distance.
 std::pair<int, double> nearest(const Model& model, const Vec3& x) {
   std::pair<int, double> best{-1, std::numeric_limits<double>::infinity()};

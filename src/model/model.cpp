@@ -17,6 +17,16 @@ const char* kComponentNames[6] = {"x", "y", "z", "rx", "ry", "rz"};
 [[noreturn]] void fail(const std::string& message) { throw std::invalid_argument(message); }
 }  // namespace
 
+double bounding_box_diagonal(const Model& model) {
+  if (model.coordinates.empty()) return 0;
+  Vec3 low = model.coordinates.front(), high = low;
+  for (const Vec3& x : model.coordinates) {
+    low = low.cwiseMin(x);
+    high = high.cwiseMax(x);
+  }
+  return (high - low).norm();
+}
+
 std::string component_name(int component) {
   if (component < 0 || component > 5) return "?";
   return kComponentNames[component];
