@@ -682,7 +682,11 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   const std::string report = format_diagnosis(problem, d);
   ASSERT_TRUE(d.discretization) << report;
   EXPECT_EQ(d.discretization->per_mode.size(), problem.measured.size());
-  EXPECT_GT(d.discretization->refinement, 1.3);
+  // Both meshes come from an element size: r is the ratio of their refinements, and extrapolation
+  // to h -> 0 of an O(h^2) error multiplies the change by r^2 / (r^2 - 1).
+  EXPECT_NEAR(d.discretization->refinement, 1.5, 1e-12);
+  for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
+    EXPECT_NEAR(m.extrapolated_percent, m.shift_percent * 2.25 / 1.25, 1e-9 * std::abs(m.shift_percent)) << m.label;
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_TRUE(d.discretization->corrected);
   for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)

@@ -160,8 +160,9 @@ struct MODALCAL_EXPORT DiagnosisStep {
 /// gains, with no free parameter added, tests "the residual is the mesh's". When it is
 /// significant the loop runs on the moved data, with the part extrapolation says even the finer
 /// mesh misses (r²/(r² − 1) − 1 times the change, for a frequency error of order h², r the
-/// ratio of element sizes from the DOF counts as (n_fine/n)^(1/3)) allowed as model error in
-/// each frequency (MeasuredMode::model_error).
+/// ratio of element sizes: the ratio of the problems' mesh_refinement where both have one, else
+/// (n_fine/n)^(1/3) from the DOF counts) allowed as model error in each frequency
+/// (MeasuredMode::model_error).
 struct MODALCAL_EXPORT DiscretizationEstimate {
   struct Mode {
     int measured = 0;  ///< 0-based
