@@ -2,6 +2,7 @@
 
 #include <dmumps_c.h>
 
+#include <cstdint>
 #include <stdexcept>
 #include <vector>
 
@@ -17,9 +18,29 @@ MUMPS_INT infog(const DMUMPS_STRUC_C& id, int k) { return id.infog[k - 1]; }
 struct MumpsSymmetricFactor::State {
   DMUMPS_STRUC_C id{};
   bool initialized = false, analyzed = false, factored = false;
+  // The matrix in MUMPS's coordinate form: read by the analysis and the factorization only (the
+  // solves use the factors: no iterative refinement, ICNTL(10) = 0), so it is released once
+  // factored, and the pattern is remembered by a fingerprint. A factorization kept per mode, as
+  // Ipopt's structured KKT solver keeps them, would otherwise hold a second copy of its block.
   std::vector<MUMPS_INT> rows, cols;
   std::vector<double> values;
+  std::uint64_t pattern = 0;
 };
+
+namespace {
+/// FNV-1a over the coordinate pattern: equal patterns, equal fingerprints.
+std::uint64_t fingerprint(MUMPS_INT n, const std::vector<MUMPS_INT>& rows, const std::vector<MUMPS_INT>& cols) {
+  std::uint64_t h = 1469598103934665603ULL;
+  auto mix = [&](std::uint64_t v) {
+    h ^= v;
+    h *= 1099511628211ULL;
+  };
+  mix(static_cast<std::uint64_t>(n));
+  mix(rows.size());
+  for (size_t k = 0; k < rows.size(); ++k) mix((static_cast<std::uint64_t>(rows[k]) << 32) ^ static_cast<std::uint32_t>(cols[k]));
+  return h;
+}
+}  // namespace
 
 MumpsSymmetricFactor::MumpsSymmetricFactor() : state_(std::make_unique<State>()) {
   DMUMPS_STRUC_C& id = state_->id;
@@ -46,21 +67,21 @@ MumpsSymmetricFactor::~MumpsSymmetricFactor() {
 bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error) {
   State& s = *state_;
   DMUMPS_STRUC_C& id = s.id;
-  std::vector<MUMPS_INT> rows, cols;
+  s.rows.clear();
+  s.cols.clear();
   s.values.clear();
   for (int c = 0; c < lower.outerSize(); ++c)
     for (SparseMatrix::InnerIterator it(lower, c); it; ++it)
       if (it.row() >= c) {
-        rows.push_back(static_cast<MUMPS_INT>(it.row() + 1));
-        cols.push_back(static_cast<MUMPS_INT>(c + 1));
+        s.rows.push_back(static_cast<MUMPS_INT>(it.row() + 1));
+        s.cols.push_back(static_cast<MUMPS_INT>(c + 1));
         s.values.push_back(it.value());
       }
   // The ordering and symbolic analysis depend on the pattern only: the modes' bordered blocks
   // share one, and so do the Newton iterations, so it is analysed once.
-  const bool same_pattern =
-      s.analyzed && id.n == static_cast<MUMPS_INT>(lower.rows()) && rows == s.rows && cols == s.cols;
-  s.rows = std::move(rows);
-  s.cols = std::move(cols);
+  const std::uint64_t pattern = fingerprint(static_cast<MUMPS_INT>(lower.rows()), s.rows, s.cols);
+  const bool same_pattern = s.analyzed && id.n == static_cast<MUMPS_INT>(lower.rows()) && pattern == s.pattern;
+  s.pattern = pattern;
   id.n = static_cast<MUMPS_INT>(lower.rows());
   id.nnz = static_cast<MUMPS_INT8>(s.values.size());
   id.irn = s.rows.data();
@@ -77,6 +98,11 @@ bool MumpsSymmetricFactor::factor(const SparseMatrix& lower, std::string* error)
     s.analyzed = code >= 0 || id.job == 2;
     if (code >= 0) {
       s.factored = true;
+      std::vector<MUMPS_INT>().swap(s.rows);  // the factors are all the solves need
+      std::vector<MUMPS_INT>().swap(s.cols);
+      std::vector<double>().swap(s.values);
+      id.irn = id.jcn = nullptr;
+      id.a = nullptr;
       return true;
     }
     if (code == -8 || code == -9 || code == -14 || code == -15 || code == -17 || code == -20) {
