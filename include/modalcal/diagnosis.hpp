@@ -144,7 +144,8 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// hardly tell from it (a likelihood ratio below about 20 to 1), the prior over kinds
   /// (effects.hpp, "Which effect") left aside, since it is what chose between them.
   std::vector<RankedEffect> alternatives;
-  /// One per alternative, in the same order (tell_apart()); empty without a stated noise.
+  /// One per alternative, in the same order (tell_apart()); empty without a stated noise and for
+  /// an exchange.
   std::vector<TellApart> tell_apart;
   static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
   /// For an exchange (Diagnosis::exchanges): the accepted effect this one replaced, and that
