@@ -390,6 +390,8 @@ TEST(TellApart, NamesTheReadingAndTheModeWhereTwoRefitsDiffer) {
   EXPECT_TRUE(t.component >= 0 && t.component < 3);
   EXPECT_TRUE(t.measured >= 0 && t.measured < static_cast<int>(problem.measured.size()));
   EXPECT_NEAR((t.location - problem.model.coordinates[static_cast<size_t>(t.node)]).norm(), 0, 1e-12);
+  for (const Sensor& s : problem.sensors)  // a reading not yet taken
+    EXPECT_FALSE(s.node == t.node && s.component == t.component) << s.label;
   ASSERT_GE(t.model_mode, 0);  // the assembly computes 8 modes and 7 are measured
   EXPECT_GT(t.model_hz, 0);
 

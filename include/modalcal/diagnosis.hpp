@@ -110,7 +110,8 @@ struct MODALCAL_EXPORT DiagnosisOptions {
 /// value at the present sensors is 1 (the scale the shape noise σ_φ refers to) and signed alike
 /// at the sensors, differs at the reading by d; separation = d / σ_φ. A mode's: the relative
 /// difference of the two models' frequencies of an elastic mode paired with no measured one,
-/// over σ_f. Only free translational DOFs of surface and interface nodes are considered.
+/// over σ_f. Only free translational DOFs of surface and interface nodes that no sensor reads
+/// already are considered.
 struct MODALCAL_EXPORT TellApart {
   std::string alternative;  ///< the alternative's candidate name
   int node = -1;            ///< 0-based model node of the best reading; -1 if none

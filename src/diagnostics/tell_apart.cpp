@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <stdexcept>
 
 #include "modalcal/assembly.hpp"
@@ -57,6 +58,8 @@ Vector at_sensors(const SolvedRefit& s, int k) {
 void best_reading(const SolvedRefit& a, const SolvedRefit& b, double shape_noise, TellApart* out) {
   const Model& model = a.problem.model;
   const std::vector<int> nodes = detail::surface_and_interface_nodes(model, detail::fixed_dofs(model));
+  std::set<std::pair<int, int>> measured_readings;  // a reading the test already takes is no advice
+  for (const Sensor& s : a.problem.sensors) measured_readings.insert({s.node, s.component});
   for (size_t i = 0; i < a.problem.measured.size(); ++i) {
     if (a.problem.measured[i].shape.size() == 0) continue;
     const int ka = paired_model_mode(a.evaluation, static_cast<int>(i)), kb = paired_model_mode(b.evaluation, static_cast<int>(i));
@@ -67,7 +70,7 @@ void best_reading(const SolvedRefit& a, const SolvedRefit& b, double shape_noise
     const double sign = sa.dot(sb) < 0 ? -1.0 : 1.0;
     for (int v : nodes)
       for (int c = 0; c < 3; ++c) {
-        if (a.dofs.free_index(v, c) < 0 || b.dofs.free_index(v, c) < 0) continue;
+        if (a.dofs.free_index(v, c) < 0 || b.dofs.free_index(v, c) < 0 || measured_readings.count({v, c})) continue;
         const double da = a.dofs.value(a.evaluation.modal.modes.col(ka), v, c) / scale_a;
         const double db = sign * b.dofs.value(b.evaluation.modal.modes.col(kb), v, c) / scale_b;
         const double separation = std::abs(da - db) / shape_noise;
