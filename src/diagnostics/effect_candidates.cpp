@@ -603,9 +603,12 @@ std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& c
 }
 
 std::optional<Vec3> effect_place(const Model& model, const EffectCandidate& candidate) {
-  if (std::optional<Vec3> at = effect_location(model, candidate)) return at;
+  if (candidate.location) return candidate.location;
+  // A block's property: its nodes' centroid, without the copy of the model effect_location()
+  // makes to find out that the effect is block-wide (the place refits ask for every candidate).
   const std::string entity = candidate.name.substr(0, candidate.name.rfind('.'));
-  return centroid(model, nodes_of(model, entity));
+  if (is_block(model, entity)) return centroid(model, nodes_of(model, entity));
+  return effect_location(model, candidate);
 }
 
 }  // namespace modalcal
