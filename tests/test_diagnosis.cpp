@@ -395,6 +395,14 @@ TEST(TellApart, NamesTheReadingAndTheModeWhereTwoRefitsDiffer) {
   ASSERT_GE(t.model_mode, 0);  // the assembly computes 8 modes and 7 are measured
   EXPECT_GT(t.model_hz, 0);
 
+  // Several alternatives at once, the accepted model solved once: the same answers.
+  const std::vector<TellApart> both = tell_apart(problem, a, std::vector<RankedEffect>{b, a});
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[0].node, t.node);
+  EXPECT_EQ(both[0].model_mode, t.model_mode);
+  EXPECT_NEAR(both[0].shape_separation, t.shape_separation, 1e-9 * t.shape_separation);
+  EXPECT_NEAR(both[1].shape_separation, 0, 1e-9);
+
   Problem quieter = problem;
   quieter.measurement_noise = MeasurementNoise{0.001, 0.01, 1};
   const TellApart q = tell_apart(quieter, a, b);

@@ -131,6 +131,12 @@ struct MODALCAL_EXPORT TellApart {
 ///   fit `problem`; std::runtime_error if either model cannot be solved.
 MODALCAL_EXPORT TellApart tell_apart(const Problem& problem, const RankedEffect& accepted,
                                      const RankedEffect& alternative);
+/// The same for each of `alternatives`, with `accepted`'s model solved once. Advice only: an
+/// alternative whose model cannot be solved gets an entry that names no reading and no mode.
+/// \throws std::invalid_argument without a stated noise or if `accepted`'s parameters do not fit
+///   `problem`; std::runtime_error if `accepted`'s model cannot be solved.
+MODALCAL_EXPORT std::vector<TellApart> tell_apart(const Problem& problem, const RankedEffect& accepted,
+                                                  const std::vector<RankedEffect>& alternatives);
 
 /// One effect accepted by a forward step of the loop.
 struct MODALCAL_EXPORT DiagnosisStep {

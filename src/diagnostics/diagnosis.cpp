@@ -228,14 +228,14 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
 }
 
 /// How a further measurement would tell the step's effect from each alternative (with a stated
-/// noise). Advice only: a pair whose models cannot be solved gets an entry that names no reading
-/// and no mode.
+/// noise). Advice only: when even the accepted effect's model cannot be solved, every entry names
+/// no reading and no mode.
 void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
-  if (!problem.measurement_noise) return;
-  for (const RankedEffect& alternative : step->alternatives) {
-    try {
-      step->tell_apart.push_back(tell_apart(problem, step->effect, alternative));
-    } catch (const std::exception&) {
+  if (!problem.measurement_noise || step->alternatives.empty()) return;
+  try {
+    step->tell_apart = tell_apart(problem, step->effect, step->alternatives);
+  } catch (const std::exception&) {
+    for (const RankedEffect& alternative : step->alternatives) {
       TellApart none;
       none.alternative = alternative.candidate.name;
       step->tell_apart.push_back(none);

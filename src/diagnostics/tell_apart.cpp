@@ -55,9 +55,9 @@ Vector at_sensors(const SolvedRefit& s, int k) {
 
 /// The reading (surface node, direction, measured mode) where the two models' shapes, each scaled
 /// to a largest value of 1 at the sensors and signed alike there, differ most.
-void best_reading(const SolvedRefit& a, const SolvedRefit& b, double shape_noise, TellApart* out) {
+void best_reading(const SolvedRefit& a, const SolvedRefit& b, const std::vector<int>& nodes, double shape_noise,
+                  TellApart* out) {
   const Model& model = a.problem.model;
-  const std::vector<int> nodes = detail::surface_and_interface_nodes(model, detail::fixed_dofs(model));
   std::set<std::pair<int, int>> measured_readings;  // a reading the test already takes is no advice
   for (const Sensor& s : a.problem.sensors) measured_readings.insert({s.node, s.component});
   for (size_t i = 0; i < a.problem.measured.size(); ++i) {
@@ -104,17 +104,50 @@ void best_unmeasured_mode(const SolvedRefit& a, const SolvedRefit& b, double fre
   }
 }
 
+/// The noise the separations are measured in.
+const MeasurementNoise& stated_noise(const Problem& problem) {
+  if (!problem.measurement_noise)
+    throw std::invalid_argument("tell_apart: the measured data state no noise to measure a separation in");
+  return *problem.measurement_noise;
+}
+
+/// The candidate places of a further sensor on `a`'s model.
+std::vector<int> sensor_places(const SolvedRefit& a) {
+  return detail::surface_and_interface_nodes(a.problem.model, detail::fixed_dofs(a.problem.model));
+}
+
+TellApart compare(const SolvedRefit& a, const SolvedRefit& b, const std::string& alternative,
+                  const std::vector<int>& nodes, const MeasurementNoise& noise) {
+  TellApart out;
+  out.alternative = alternative;
+  if (noise.shape > 0) best_reading(a, b, nodes, noise.shape, &out);
+  if (noise.frequency > 0) best_unmeasured_mode(a, b, noise.frequency, &out);
+  return out;
+}
+
 }  // namespace
 
 TellApart tell_apart(const Problem& problem, const RankedEffect& accepted, const RankedEffect& alternative) {
-  if (!problem.measurement_noise)
-    throw std::invalid_argument("tell_apart: the measured data state no noise to measure a separation in");
-  const MeasurementNoise& noise = *problem.measurement_noise;
+  const MeasurementNoise& noise = stated_noise(problem);
   const SolvedRefit a = solve_refit(problem, accepted), b = solve_refit(problem, alternative);
-  TellApart out;
-  out.alternative = alternative.candidate.name;
-  if (noise.shape > 0) best_reading(a, b, noise.shape, &out);
-  if (noise.frequency > 0) best_unmeasured_mode(a, b, noise.frequency, &out);
+  return compare(a, b, alternative.candidate.name, sensor_places(a), noise);
+}
+
+std::vector<TellApart> tell_apart(const Problem& problem, const RankedEffect& accepted,
+                                  const std::vector<RankedEffect>& alternatives) {
+  const MeasurementNoise& noise = stated_noise(problem);
+  const SolvedRefit a = solve_refit(problem, accepted);
+  const std::vector<int> nodes = sensor_places(a);
+  std::vector<TellApart> out;
+  for (const RankedEffect& alternative : alternatives) {
+    try {
+      out.push_back(compare(a, solve_refit(problem, alternative), alternative.candidate.name, nodes, noise));
+    } catch (const std::exception&) {  // advice only: an entry that names nothing
+      TellApart none;
+      none.alternative = alternative.candidate.name;
+      out.push_back(none);
+    }
+  }
   return out;
 }
 
