@@ -71,7 +71,9 @@ class BlockElimination {
              const std::function<void(Matrix*)>& solve_reduced,
              const std::function<Matrix(int, const Matrix&)>& hessian_product = {});
   /// Frees the kept W_i of mode i (solve() then needs `hessian_product`).
-  void release_hessian(int i) { modes_[i].blocks.hessian = SparseMatrix(); }
+  void release_hessian(int i) { release(&modes_[i].blocks.hessian); }
+  /// Frees a sparse matrix's storage (assigning an empty one keeps it).
+  static void release(SparseMatrix* matrix) { SparseMatrix().swap(*matrix); }
 
  private:
   struct Mode {

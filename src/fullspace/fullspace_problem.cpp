@@ -82,12 +82,11 @@ void FullSpaceProblem::set_scales(const Vector& p_scale) {
 /// Structural rows of K_j, M_j: where any term depending on p_j has an entry.
 void FullSpaceProblem::find_parameter_rows(const Vector& p_scale) {
   parameter_rows_.resize(np_);
-  dK_.resize(np_);
-  dM_.resize(np_);
   for (int j = 0; j < np_; ++j) {
-    system_.assemble_derivative(p_scale, j, &dK_[j], &dM_[j]);
+    SparseMatrix dK, dM;
+    system_.assemble_derivative(p_scale, j, &dK, &dM);
     std::vector<char> touched(n_, 0);
-    for (const SparseMatrix* A : {&dK_[j], &dM_[j]})
+    for (const SparseMatrix* A : {&dK, &dM})
       for (int k = 0; k < A->nonZeros(); ++k)
         if (A->valuePtr()[k] != 0.0) touched[A->innerIndexPtr()[k]] = 1;
     for (int r = 0; r < n_; ++r)
@@ -150,7 +149,6 @@ void FullSpaceProblem::update(const double* x) {
   dp_ = scaling_.first_derivative(q);
   d2p_ = scaling_.second_derivative(q);
   system_.assemble(p_, &K_, &M_);
-  for (int j = 0; j < np_; ++j) system_.assemble_derivative(p_, j, &dK_[j], &dM_[j]);
   cached_q_ = q;
 }
 
@@ -315,8 +313,9 @@ void FullSpaceProblem::jacobian_values(const double* x, double* values) {
     Eigen::Map<Vector>(values + b.r_t.offset, n_) = -D.cwiseProduct(Mu) / mass_scale_;
     Eigen::Map<Vector>(values + b.n_u.offset, n_) = Mu / s2 * normalization_scale_;
     for (int j = 0; j < np_; ++j) {
-      const Vector dMu = dM_[j] * u;
-      const Vector column = D.cwiseProduct(dK_[j] * u / lambda - t * dMu) * (dp_[j] / mass_scale_);
+      Vector dKu, dMu;
+      system_.derivative_times(p_, j, u, &dKu, &dMu);
+      const Vector column = D.cwiseProduct(dKu / lambda - t * dMu) * (dp_[j] / mass_scale_);
       const std::vector<int>& rows = parameter_rows_[j];
       for (size_t k = 0; k < rows.size(); ++k) values[b.r_q[j].offset + k] = column[rows[k]];
       values[b.n_q.offset + j] = 0.5 * u.dot(dMu) / s2 * dp_[j] * normalization_scale_;
@@ -353,8 +352,10 @@ void FullSpaceProblem::hessian_values(const double* x, double sigma, const doubl
     Eigen::Map<Vector>(values + b.h_tu.offset, n_) = -(M_ * yr) / mass_scale_;
     values[b.h_tt.offset] = sigma * m.weight;
     for (int j = 0; j < np_; ++j) {
-      const Vector dMu = dM_[j] * u;
-      const Vector row = ((dK_[j] * yr) / lambda - t * (dM_[j] * yr)) * (dp_[j] / mass_scale_) + z / s2 * dp_[j] * dMu;
+      Vector dKu, dMu, dKy, dMy;
+      system_.derivative_times(p_, j, u, &dKu, &dMu);
+      system_.derivative_times(p_, j, yr, &dKy, &dMy);
+      const Vector row = (dKy / lambda - t * dMy) * (dp_[j] / mass_scale_) + z / s2 * dp_[j] * dMu;
       const std::vector<int>& rows = parameter_rows_[j];
       for (size_t k = 0; k < rows.size(); ++k) values[b.h_qu[j].offset + k] = row[rows[k]];
       values[b.h_qt.offset + j] = -yr.dot(dMu) / mass_scale_ * dp_[j];

@@ -113,8 +113,9 @@ class FullSpaceProblem {
   // Cached at p(q) of the last update.
   Vector cached_q_;
   Vector p_, dp_, d2p_;
+  // K and M only: the derivatives dK_j, dM_j enter as products (ParametricSystem::derivative_times),
+  // which touch only parameter j's terms; formed, each would hold pattern(K)'s size.
   SparseMatrix K_, M_;
-  std::vector<SparseMatrix> dK_, dM_;
 };
 
 }  // namespace modalcal::detail
