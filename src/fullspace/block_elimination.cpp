@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "eigen/block_lanczos.hpp"  // symmetric_times: W_i is stored in full
+
 namespace modalcal::detail {
 
 BlockElimination::BlockElimination(int num_modes, int num_parameters, bool keep_factors)
@@ -24,7 +26,7 @@ Matrix BlockElimination::eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFa
   const Vector inverse_scale = blocks.row_scale.cwiseInverse();
   *right = inverse_scale.asDiagonal() * (*right);
   factor.solve(right);
-  *left -= hessian_product ? hessian_product(*right) : Matrix(blocks.hessian * (*right));
+  *left -= hessian_product ? hessian_product(*right) : symmetric_times(blocks.hessian, *right);
   factor.solve(left);
   *left = inverse_scale.asDiagonal() * (*left);
   // With right = [a, S] and left = [b, T]: C^T S + P^T T = C^T S + S^T (C - W S) (as T = A^{-T}

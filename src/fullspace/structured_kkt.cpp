@@ -86,10 +86,9 @@ class KktInstance {
     Matrix fq = rhs.middleRows(p.parameter_offset(), np);
     auto hessian_product = [&](int i, const Matrix& v) {
       Matrix product = Matrix::Zero(v.rows(), v.cols());
-      for_each_in_mode_rows(p, i, ia, ja, [&](int k, const Place& place) {
-        if (place.kind != Place::ModeHessian) return;
-        product.row(place.row) += a[k] * v.row(place.col);
-        if (place.row != place.col) product.row(place.col) += a[k] * v.row(place.row);
+      for_each_mode_hessian_entry(p, i, ia, ja, [&](int k, int row, int col) {
+        product.row(row) += a[k] * v.row(col);
+        if (row != col) product.row(col) += a[k] * v.row(row);
       });
       return product;
     };
@@ -151,12 +150,26 @@ class KktInstance {
         visit(k, place);
       }
   }
-  // Mode i's rows (its u~_i and t_i): every entry of W_i, C_i and A_i is stored there (upper
-  // triangle: the parameter and multiplier columns come after them).
+  // Mode i's local index (0..n) of unknown or constraint `index`, or -1 when it is not mode i's:
+  // a few comparisons, where locate() divides, for the entries read at every factorization.
+  static int local_index(const FullSpaceProblem& p, int i, int index) {
+    const int nd = p.num_dofs(), first = i * nd;
+    if (index >= first && index < first + nd) return index - first;
+    return index == p.mode_entry(i, nd) ? nd : -1;
+  }
+
+  // The entries of W_i (upper triangle: row <= col, local indices): in mode i's rows, those whose
+  // column is one of mode i's unknowns.
   template <class Visit>
-  static void for_each_in_mode_rows(const FullSpaceProblem& p, int i, const int* ia, const int* ja, Visit&& visit) {
-    for_each_in_rows(p, p.mode_entry(i, 0), p.num_dofs(), ia, ja, visit);
-    for_each_in_rows(p, p.mode_entry(i, p.num_dofs()), 1, ia, ja, visit);
+  static void for_each_mode_hessian_entry(const FullSpaceProblem& p, int i, const int* ia, const int* ja,
+                                          Visit&& visit) {
+    for (int row = 0; row <= p.num_dofs(); ++row) {
+      const int r = p.mode_entry(i, row);
+      for (int k = ia[r] - 1; k < ia[r + 1] - 1; ++k) {
+        const int col = local_index(p, i, ja[k] - 1);
+        if (col >= 0) visit(k, row, col);
+      }
+    }
   }
 
   ModeKktBlocks mode_blocks(const FullSpaceProblem& p, int i, const double* a, const int* ia, const int* ja,
@@ -167,19 +180,25 @@ class KktInstance {
     blocks.jacobian_parameters = std::move(jacobian_parameters);
     blocks.hessian_parameters = Matrix::Zero(nd + 1, np);
     std::vector<Eigen::Triplet<double, int>> bordered, hessian;
-    for_each_in_mode_rows(p, i, ia, ja, [&](int k, const Place& e) {
-      switch (e.kind) {
-        case Place::ModeHessian:
-          hessian.emplace_back(e.row, e.col, a[k]);
-          if (e.row != e.col) hessian.emplace_back(e.col, e.row, a[k]);
-          break;
-        case Place::ModeParameterHessian: blocks.hessian_parameters(e.row, e.col) += a[k]; break;
-        case Place::ModeJacobian:  // B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle
-          if (e.row >= e.col) bordered.emplace_back(e.row, e.col, a[k] / blocks.row_scale[e.row]);
-          break;
-        default: break;
+    // Mode i's rows hold, column by column in this order: W_i (mode i's unknowns), C_i (the
+    // parameters) and A_i^T (mode i's constraints), as classify() checked.
+    const int nv = p.num_variables(), q0 = p.parameter_offset();
+    for (int row = 0; row <= nd; ++row) {
+      const int r = p.mode_entry(i, row);
+      for (int k = ia[r] - 1; k < ia[r + 1] - 1; ++k) {
+        const int c = ja[k] - 1;
+        if (c >= nv) {  // A_i(constraint, row); B_i = diag(s_i)^{-1} A_i is symmetric: its lower triangle
+          const int constraint = local_index(p, i, c - nv);
+          if (constraint >= row) bordered.emplace_back(constraint, row, a[k] / blocks.row_scale[constraint]);
+        } else if (c >= q0) {
+          blocks.hessian_parameters(row, c - q0) += a[k];
+        } else {
+          const int col = local_index(p, i, c);
+          hessian.emplace_back(row, col, a[k]);
+          if (row != col) hessian.emplace_back(col, row, a[k]);
+        }
       }
-    });
+    }
     blocks.bordered.resize(nd + 1, nd + 1);
     blocks.bordered.setFromTriplets(bordered.begin(), bordered.end());
     blocks.hessian.resize(nd + 1, nd + 1);
