@@ -126,6 +126,11 @@ void MumpsSymmetricFactor::set_pivot_threshold(double threshold) { state_->id.cn
 
 int MumpsSymmetricFactor::negative_pivots() const { return infog(state_->id, 12); }
 
+double MumpsSymmetricFactor::factor_entries() const {
+  const MUMPS_INT entries = infog(state_->id, 29);
+  return entries >= 0 ? entries : -1e6 * entries;  // negative: millions (MUMPS's convention)
+}
+
 void MumpsSymmetricFactor::solve(Matrix* rhs) {
   State& s = *state_;
   if (!s.factored) throw std::logic_error("MumpsSymmetricFactor::solve before a successful factor");

@@ -28,6 +28,8 @@ class MumpsSymmetricFactor {
   void set_pivot_threshold(double threshold);
   /// Number of negative pivots of the last factorization (the inertia, Sylvester).
   int negative_pivots() const;
+  /// Entries of the factors of the last factorization (INFOG(29)), for memory reports.
+  double factor_entries() const;
   /// Solves A X = B for every column of B, in place.
   void solve(Matrix* rhs);
 
