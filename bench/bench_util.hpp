@@ -56,4 +56,14 @@ inline std::vector<double> parse_list(const std::string& text) {
   return out;
 }
 
+/// A benchmark's main(): `run`'s exit code, or its exception's message on stderr and exit 1.
+inline int run_guarded(const char* name, int (*run)(int, char**), int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", name, e.what());
+    return 1;
+  }
+}
+
 }  // namespace modalcal::bench

@@ -177,11 +177,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "forward_solve_benchmark: %s\n", e.what());
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return modalcal::bench::run_guarded("forward_solve_benchmark", run, argc, argv); }
