@@ -293,11 +293,11 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   // reduction less 2 ln of how many candidates of its kind were screened); the rest by prediction.
   for (size_t k = 1; k < ranking.effects.size(); ++k) {
     const RankedEffect &a = ranking.effects[k - 1], &b = ranking.effects[k];
-    if (a.refitted && b.refitted && a.significant == b.significant) {
+    if (a.refitted && b.refitted && a.acceptable() == b.acceptable()) {
       EXPECT_GE(a.score(), b.score());
     }
     if (a.refitted && b.refitted) {
-      EXPECT_GE(a.significant, b.significant);
+      EXPECT_GE(a.acceptable(), b.acceptable());
     }
     if (!a.refitted) {
       EXPECT_FALSE(b.refitted);
@@ -431,6 +431,30 @@ TEST(EffectRanking, AOneSidedEffectDoesNotHelpByANegativeValue) {
   EXPECT_LT(ranking.effects[0].predicted_value, 1);
   EXPECT_EQ(ranking.effects[1].predicted_reduction, 0);
   EXPECT_EQ(ranking.effects[1].predicted_value, 0);
+}
+
+TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
+  // The truth's Poisson's ratio (0.02) lies below the candidate's range (nu0 - 0.2 = 0.1): the
+  // refit stops on the bound, significant but standing in for a change it cannot make.
+  const Problem problem = noise_weighted(WithHiddenEffect({"top.nu=0.02"}, 5), MeasurementNoise{0.002, 0.02, 5});
+  const EffectCandidate nu = make_candidate(problem, "top.nu");
+  ASSERT_NEAR(nu.lower, 0.1, 1e-12);
+  const EffectRanking ranking = rank_effects(problem, problem.truth_values(), {nu});
+  ASSERT_EQ(ranking.effects.size(), 1u);
+  const RankedEffect& refit = ranking.effects.front();
+  ASSERT_TRUE(refit.refitted);
+  EXPECT_TRUE(refit.significant) << refit.summary();
+  EXPECT_NEAR(refit.value, nu.lower, 1e-4);
+  EXPECT_TRUE(refit.at_bound);
+  EXPECT_FALSE(refit.acceptable());
+  // An effect inside its range (the top's mass x 1.1 within x/÷ 10) is acceptable.
+  const Problem inside = noise_weighted(WithHiddenEffect({"top.mass_scale=1.1"}, 5), MeasurementNoise{0.002, 0.02, 5});
+  const EffectRanking inside_ranking =
+      rank_effects(inside, inside.truth_values(), {make_candidate(inside, "top.mass_scale")});
+  const RankedEffect& fit = inside_ranking.effects.front();
+  EXPECT_TRUE(fit.acceptable()) << fit.summary();
+  EXPECT_FALSE(fit.at_bound);
+  EXPECT_NEAR(fit.value, 1.1, 0.05);
 }
 
 TEST(Diagnosis, FindsAHiddenMassAndLeavesACorrectModelAlone) {

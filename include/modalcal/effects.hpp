@@ -241,6 +241,13 @@ struct MODALCAL_EXPORT RankedEffect {
   /// without a stated noise).
   double standard_error = NAN;
   bool significant = false;  ///< likelihood-ratio test passed (refitted only)
+  /// The refit's value ended on a bound of the candidate's range (EffectCandidate::lower,
+  /// upper): the data ask for more change than this effect can make, so what it gains stands in
+  /// for something else (a foam's stiffness at a tenth, a block's mass at a tenth). Listed, but
+  /// never accepted by a step nor named as an alternative.
+  bool at_bound = false;
+  /// What a step may accept: significant, and inside its range.
+  bool acceptable() const { return refitted && significant && !at_bound; }
   /// The refit's calibration parameters, then the effect's value; before a refit, the
   /// first-order estimate of them (its start).
   Vector parameters;

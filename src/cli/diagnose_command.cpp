@@ -200,7 +200,8 @@ nlohmann::json ranking_json(const Problem& problem, const EffectRanking& ranking
                     {"delta_bic", json_number(r.delta_bic)},
                     {"kind_size", r.kind_size},
                     {"score", json_number(r.refitted ? r.score() : NAN)},
-                    {"significant", r.significant}});
+                    {"significant", r.significant},
+                    {"at_bound", r.at_bound}});
   }
   return list;
 }

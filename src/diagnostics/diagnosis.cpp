@@ -199,10 +199,10 @@ void localize(const Problem& problem, const Vector& calibrated, const DiagnosisO
 
 bool consistent_with_noise(const FitState& fit) { return fit.test && !fit.test->model_form_error; }
 
-/// The ranking's effect to accept, or null: its best refit when that is significant.
+/// The ranking's effect to accept, or null: its best refit when that is significant and inside
+/// its range (the ranking puts those first).
 const RankedEffect* acceptable(const EffectRanking& ranking) {
-  if (ranking.effects.empty() || !ranking.effects.front().refitted || !ranking.effects.front().significant)
-    return nullptr;
+  if (ranking.effects.empty() || !ranking.effects.front().acceptable()) return nullptr;
   return &ranking.effects.front();
 }
 
@@ -221,7 +221,7 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
     const RankedEffect& other = ranking.effects[k];
     // The data's verdict alone, without the prior over kinds: a likelihood ratio below 20 : 1,
     // or one in the other's favour that the prior overruled.
-    if (other.refitted && other.significant && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin)
+    if (other.acceptable() && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin)
       step.alternatives.push_back(other);
   }
   return step;

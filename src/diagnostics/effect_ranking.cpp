@@ -33,6 +33,14 @@ double to_variable(const EffectCandidate& c, double value) {
   }
   return value;
 }
+/// True when `value` lies on a bound of the candidate's range, to 1e-4 of the range in the
+/// screening variable (the refits stop on a bound, not past it).
+bool on_bound(const EffectCandidate& c, double value) {
+  const double lo = to_variable(c, c.lower), hi = to_variable(c, c.upper), x = to_variable(c, value);
+  const double tolerance = 1e-4 * std::abs(hi - lo);
+  return std::abs(x - lo) <= tolerance || std::abs(x - hi) <= tolerance;
+}
+
 double from_variable(const EffectCandidate& c, double x) {
   switch (c.variable) {
     case EffectCandidate::Variable::Log:
@@ -387,6 +395,7 @@ void refit_best(const Problem& problem, const RankingOptions& options, const Eff
         ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
     ranked.statistic = statistic;
     ranked.significant = statistic > ranking.critical_value;
+    ranked.at_bound = on_bound(ranked.candidate, ranked.value);
     ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
     ranked.delta_aic = statistic - 2;
   }
@@ -497,7 +506,7 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {
     if (a.refitted != b.refitted) return a.refitted;
     if (!a.refitted) return false;
-    if (a.significant != b.significant) return a.significant;
+    if (a.acceptable() != b.acceptable()) return a.acceptable();
     return a.score() > b.score();
   });
   if (!screened.empty() && screened.front().refitted && ranking.noise_known)
@@ -525,7 +534,7 @@ std::string format_effect_ranking(const EffectRanking& ranking, int max_rows) {
     std::snprintf(line, sizeof line, "%4d  %-34s %11s %11s %11s %9s  %s\n", k + 1, r.candidate.name.c_str(),
                   format_value(r.predicted_reduction).c_str(), achieved.c_str(),
                   format_value(r.refitted ? r.value : r.predicted_value).c_str(), bic.c_str(),
-                  r.refitted ? (r.significant ? "yes" : "no") : "-");
+                  r.refitted ? (r.significant ? (r.at_bound ? "at bound" : "yes") : "no") : "-");
     text += line;
   }
   std::snprintf(line, sizeof line,
