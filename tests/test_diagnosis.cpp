@@ -457,6 +457,29 @@ TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   EXPECT_NEAR(fit.value, 1.1, 0.05);
 }
 
+TEST(Diagnosis, AnEffectOnItsBoundIsNotAddedButTheVerdictStillSaysModelFormError) {
+  // Only the blocks' candidates: the truth's pad is softer than pad.stiffness_scale's range
+  // (down to a tenth) allows.
+  const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.03"}, 5);
+  DiagnosisOptions options;
+  options.candidates.joints = options.candidates.node_sets = options.candidates.supports = false;
+  options.candidates.sensor_masses = options.candidates.between_parts = false;
+  options.candidates.spatial = options.candidates.regions = false;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
+  const std::string report = format_diagnosis(problem, d);
+  EXPECT_TRUE(d.model_form_error) << report;
+  for (const DiagnosisStep& step : d.steps) EXPECT_FALSE(step.effect.at_bound) << step.effect.candidate.name;
+  bool pad_on_bound = false;
+  for (const EffectRanking& ranking : d.rankings)
+    for (const RankedEffect& r : ranking.effects) pad_on_bound |= r.candidate.name == "pad.stiffness_scale" && r.at_bound;
+  EXPECT_TRUE(pad_on_bound) << report;
+  if (d.accepted().empty()) {
+    EXPECT_NE(d.recommendation.find("pad.stiffness_scale explains a significant part"), std::string::npos)
+        << d.recommendation;
+    EXPECT_EQ(d.recommendation.find("nothing needs adding"), std::string::npos) << d.recommendation;
+  }
+}
+
 TEST(Diagnosis, FindsAHiddenMassAndLeavesACorrectModelAlone) {
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1"}, 3);
   const Diagnosis d = diagnose(hidden, hidden.initial_values());

@@ -206,6 +206,16 @@ const RankedEffect* acceptable(const EffectRanking& ranking) {
   return &ranking.effects.front();
 }
 
+/// The last step's significant refit that ended on a bound of its range, when that step accepted
+/// nothing: the data still ask for a change, one no candidate makes within its range.
+const RankedEffect* bound_limited(const Diagnosis& d) {
+  if (d.rankings.empty() || d.rankings.back().effects.empty() || d.rankings.back().effects.front().acceptable())
+    return nullptr;
+  for (const RankedEffect& r : d.rankings.back().effects)
+    if (r.refitted && r.significant && r.at_bound) return &r;
+  return nullptr;
+}
+
 /// The record of accepting `ranking`'s best effect (acceptable()) as step `number`: its test, its
 /// place in `model` and the alternatives the data hardly tell from it.
 DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, int number) {
@@ -408,9 +418,23 @@ std::string recommendation_text(const Diagnosis& d) {
   return discretization_text(d) + effects_text(d);
 }
 
+/// " X, significant, ends on a bound of its range (value V): the data ask for more change than any
+/// candidate makes within its range, so it is not added." or "".
+std::string bound_limited_text(const Diagnosis& d) {
+  const RankedEffect* limited = bound_limited(d);
+  if (!limited) return "";
+  return " " + limited->candidate.name + " explains a significant part of " +
+         (d.accepted().empty() ? "the residual" : "what remains") + " but ends on a bound of its range (" +
+         format_number(limited->value) + "): the data ask for more change than it can make, so it is not added.";
+}
+
 std::string effects_text(const Diagnosis& d) {
   char numbers[200];
   if (d.accepted().empty()) {
+    if (bound_limited(d))
+      return "Model-form error." + bound_limited_text(d) +
+             " The missing physics is not among the candidates as they are bounded (declare your own under "
+             "effects: in the problem file).";
     if (!d.model_form_error)
       return "No model-form error: the calibrated residual is consistent with the stated noise and no candidate "
              "effect explains a significant part of it; nothing needs adding.";
@@ -436,7 +460,7 @@ std::string effects_text(const Diagnosis& d) {
             "): what remains is not among the candidates.";
   else
     text += "With them the residual is consistent with the noise.";
-  return text;
+  return text + bound_limited_text(d);
 }
 
 }  // namespace
@@ -570,7 +594,8 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   d.final_fit = state.fit;
   // What the backward pass kept decides, not the forward steps: a step whose refit only escaped
   // a local minimum of the calibration is dropped again, and the residual at the end is noise.
-  d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error;
+  d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error ||
+                       bound_limited(d) != nullptr;
   if (!d.accepted().empty()) {
     d.recommended = 0;
     d.after = d.final_fit;
