@@ -244,7 +244,8 @@ struct MODALCAL_EXPORT RankedEffect {
   /// The refit's value ended on a bound of the candidate's range (EffectCandidate::lower,
   /// upper): the data ask for more change than this effect can make, so what it gains stands in
   /// for something else (a foam's stiffness at a tenth, a block's mass at a tenth). Listed, but
-  /// never accepted by a step nor named as an alternative.
+  /// never accepted by a step nor named as an alternative. Effects added from zero (springs,
+  /// masses) are exempt: a spring at its upper bound holds its node.
   bool at_bound = false;
   /// What a step may accept: significant, and inside its range.
   bool acceptable() const { return refitted && significant && !at_bound; }

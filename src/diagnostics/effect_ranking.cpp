@@ -34,8 +34,11 @@ double to_variable(const EffectCandidate& c, double value) {
   return value;
 }
 /// True when `value` lies on a bound of the candidate's range, to 1e-4 of the range in the
-/// screening variable (the refits stop on a bound, not past it).
+/// screening variable (the refits stop on a bound, not past it). An effect added from zero (a
+/// spring or a mass, linear from 0) is exempt: at its upper bound a spring holds its node, a
+/// physical answer (the truth may be stiffer still), not a stand-in.
 bool on_bound(const EffectCandidate& c, double value) {
+  if (c.variable == EffectCandidate::Variable::Linear && c.lower == 0) return false;
   const double lo = to_variable(c, c.lower), hi = to_variable(c, c.upper), x = to_variable(c, value);
   const double tolerance = 1e-4 * std::abs(hi - lo);
   return std::abs(x - lo) <= tolerance || std::abs(x - hi) <= tolerance;
