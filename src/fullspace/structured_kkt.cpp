@@ -180,8 +180,8 @@ class KktInstance {
     blocks.jacobian_parameters = std::move(jacobian_parameters);
     blocks.hessian_parameters = Matrix::Zero(nd + 1, np);
     std::vector<Eigen::Triplet<double, int>> bordered, hessian;
-    // Mode i's rows hold, column by column in this order: W_i (mode i's unknowns), C_i (the
-    // parameters) and A_i^T (mode i's constraints), as classify() checked.
+    // Mode i's rows hold W_i (in the columns of mode i's unknowns), C_i (the parameters' columns)
+    // and A_i^T (mode i's constraints' columns) and nothing else, as classify() checked.
     const int nv = p.num_variables(), q0 = p.parameter_offset();
     for (int row = 0; row <= nd; ++row) {
       const int r = p.mode_entry(i, row);
