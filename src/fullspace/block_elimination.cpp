@@ -60,14 +60,8 @@ bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, co
   }
   if (++added_ == static_cast<int>(modes_.size())) reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
   if (keep_factors_) {
-    // Swapped, not assigned: Eigen 3.4's SparseMatrix has no move, so assigning copies, and
-    // assigning an empty matrix keeps the storage. B_i is in the factor now.
-    release(&blocks.bordered);
-    release(&mode.blocks.hessian);
-    mode.blocks.hessian.swap(blocks.hessian);
-    mode.blocks.row_scale = std::move(blocks.row_scale);
-    mode.blocks.hessian_parameters = std::move(blocks.hessian_parameters);
-    mode.blocks.jacobian_parameters = std::move(blocks.jacobian_parameters);
+    release(&blocks.bordered);  // in the factor now
+    mode.blocks = std::move(blocks);  // a swap: the previous blocks leave with the argument
   }
   return true;
 }

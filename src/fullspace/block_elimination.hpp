@@ -38,6 +38,21 @@ struct ModeKktBlocks {
   SparseMatrix hessian;      ///< W_i, both triangles
   Matrix hessian_parameters; ///< C_i, (n + 1) x m
   Matrix jacobian_parameters;///< P_i, (n + 1) x m
+
+  ModeKktBlocks() = default;
+  ModeKktBlocks(const ModeKktBlocks&) = default;
+  ModeKktBlocks& operator=(const ModeKktBlocks&) = default;
+  // Eigen 3.4's SparseMatrix has no move (its "move" copies): moving a mode's blocks swaps them,
+  // so that nothing is copied; the moved-from object holds what this one held.
+  ModeKktBlocks(ModeKktBlocks&& other) noexcept { *this = std::move(other); }
+  ModeKktBlocks& operator=(ModeKktBlocks&& other) noexcept {
+    bordered.swap(other.bordered);
+    row_scale.swap(other.row_scale);
+    hessian.swap(other.hessian);
+    hessian_parameters.swap(other.hessian_parameters);
+    jacobian_parameters.swap(other.jacobian_parameters);
+    return *this;
+  }
 };
 
 class BlockElimination {
