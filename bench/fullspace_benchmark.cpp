@@ -115,13 +115,17 @@ long max_rss_kb() {
 
 // FullSpace: Ipopt on the structured KKT solver (the default); FullSpaceMumps: Ipopt with MUMPS
 // on the whole KKT matrix; FullSpaceBlock: the block SQP.
-enum class Method { Reduced, FullSpace, FullSpaceMumps, FullSpaceBlock };
+// FullSpace and FullSpaceBlock use the default bordered solves (FullSpaceOptions::BorderedSolves::
+// Automatic: shared from its DOF threshold on); the *PerMode ones force one factorization per mode.
+enum class Method { Reduced, FullSpace, FullSpaceMumps, FullSpaceBlock, FullSpacePerMode, FullSpaceBlockPerMode };
 const char* method_name(Method m) {
   switch (m) {
     case Method::Reduced: return "reduced L-BFGS";
     case Method::FullSpace: return "full (Ipopt, structured)";
     case Method::FullSpaceMumps: return "full (Ipopt, MUMPS)";
     case Method::FullSpaceBlock: return "full (block SQP)";
+    case Method::FullSpacePerMode: return "full (Ipopt, per-mode)";
+    case Method::FullSpaceBlockPerMode: return "full (block, per-mode)";
   }
   return "?";
 }
@@ -144,6 +148,8 @@ struct CaseResult {
   bool ran = false;                // the child finished (converged or not)
   bool ok = false;                 // the method converged (full space: mode check passed too)
   char status[96] = "";
+  char bordered[16] = "";          // FullSpaceSummary::bordered_solves
+  int shared_eliminations = 0, shared_failures = 0;
   int dofs = 0, modes = 0;
   int iterations = 0, globalization_iterations = 0, restarts = 0;
   int forward_solves = 0, kkt_solves = 0;
@@ -219,7 +225,10 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     FullSpaceOptions o;
     o.globalization_reduction = s.globalization_reduction;
     o.print_level = s.ipopt_print_level;
-    if (method == Method::FullSpaceBlock) o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
+    if (method == Method::FullSpaceBlock || method == Method::FullSpaceBlockPerMode)
+      o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
+    if (method == Method::FullSpacePerMode || method == Method::FullSpaceBlockPerMode)
+      o.bordered_solves = FullSpaceOptions::BorderedSolves::PerMode;
     if (method == Method::FullSpaceMumps) o.kkt_solver = FullSpaceOptions::KktSolver::Mumps;
     o.progress = [&](const KktRecord& record) {
       note(record.parameter_error);
@@ -242,6 +251,9 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     r.restarts = summary.restarts;
     r.forward_solves = summary.forward_solves;
     r.kkt_solves = summary.kkt_solves;
+    std::snprintf(r.bordered, sizeof r.bordered, "%s", summary.bordered_solves.c_str());
+    r.shared_eliminations = summary.shared_eliminations;
+    r.shared_failures = summary.shared_failures;
     r.unknowns = summary.num_unknowns;
     r.constraints = summary.num_constraints;
     r.ipopt_s = summary.newton_seconds;
@@ -374,6 +386,9 @@ nlohmann::json to_json(const CaseResult& r, Method method, double refinement) {
           {"restarts", r.restarts},
           {"forward_solves", r.forward_solves},
           {"kkt_solves", r.kkt_solves},
+          {"bordered_solves", r.bordered},
+          {"shared_eliminations", r.shared_eliminations},
+          {"shared_failures", r.shared_failures},
           {"unknowns", r.unknowns},
           {"constraints", r.constraints},
           {"setup_seconds", r.setup_s},
@@ -401,7 +416,9 @@ const char* kUsage =
     "  --modes LIST                measured modes kept, the first K (default 4)\n"
     "  --methods LIST              reduced,fullspace,mumps,block: reduced L-BFGS, full space with Ipopt\n"
     "                              on the structured KKT solver (the default), Ipopt with MUMPS on the\n"
-    "                              whole KKT matrix, the block-elimination SQP (default all)\n"
+    "                              whole KKT matrix, the block-elimination SQP (default all); with\n"
+    "                              -per-mode: one factorization per mode's bordered block, where the\n"
+    "                              default shares one above FullSpaceOptions::shared_factorization_min_dofs\n"
     "  --start-factor F            start at truth x F, clamped to the bounds (default 0.7)\n"
     "  --target-error E            parameter error for the time-to-accuracy column (default 1e-8)\n"
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
@@ -444,7 +461,11 @@ int run(int argc, char** argv) {
         else if (m == "fullspace") methods.push_back(Method::FullSpace);
         else if (m == "mumps") methods.push_back(Method::FullSpaceMumps);
         else if (m == "block") methods.push_back(Method::FullSpaceBlock);
-        else throw std::invalid_argument("unknown method '" + m + "' (reduced, fullspace, mumps, block)");
+        else if (m == "fullspace-per-mode") methods.push_back(Method::FullSpacePerMode);
+        else if (m == "block-per-mode") methods.push_back(Method::FullSpaceBlockPerMode);
+        else
+          throw std::invalid_argument("unknown method '" + m +
+                                      "' (reduced, fullspace, mumps, block, fullspace-per-mode, block-per-mode)");
       }
     } else if (a == "--start-factor") s.start_factor = number();
     else if (a == "--target-error") s.target_error = number();

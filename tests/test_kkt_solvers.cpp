@@ -1,7 +1,9 @@
 // The KKT solvers of the full space, matrix by matrix: the block SQP's step against the whole
 // KKT system, and the structured solver Ipopt calls through libpardiso.so against dense linear
 // algebra - inertia (what Ipopt's inertia correction reads), the solution, a singular mode block,
-// and the fallback to MUMPS on the whole matrix for every matrix that is not the registered layout.
+// and the fallback to MUMPS on the whole matrix for every matrix that is not the registered layout;
+// both again with every mode's bordered block solved through one shared factorization, and that
+// solver's fallback to a factorization where its deflation basis lacks a mode.
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -51,6 +53,7 @@ struct PerturbedPoint {
   detail::FullSpaceProblem fp{objective, scaling, p};
   Vector x, y;
   std::vector<int> model_mode;
+  Matrix forward_modes;  // every mode of the forward solve at p: the shared solves' deflation basis
 
   static ObjectiveOptions Regularized() {
     ObjectiveOptions options;
@@ -68,6 +71,7 @@ struct PerturbedPoint {
       U.col(i) = e.modal.modes.col(model_mode[i]);
       lambda[i] = e.modal.eigenvalues[model_mode[i]];
     }
+    forward_modes = e.modal.modes;
     detail::Uniform random_draws(7);
     x = fp.pack(U, lambda, p);
     y.resize(fp.num_constraints());
@@ -184,6 +188,54 @@ TEST(BlockKkt, StepSolvesTheWholeKktSystemAndCountsEachModesIndex) {
   for (int i = 0; i < fp.num_modes(); ++i) EXPECT_EQ(kkt.mode_index(i), point.model_mode[i] + 1) << "mode " << i + 1;
 }
 
+TEST(BlockKkt, OneSharedFactorizationGivesTheStepAndIndexOfOneFactorizationPerMode) {
+  // The point is off every eigenpair (modes and eigenvalues perturbed by 1e-3): the projected
+  // bordered solve must hold for any (u_i, t_i), with the forward solve at p only as its basis.
+  PerturbedPoint point(/*coarse=*/false);
+  detail::FullSpaceProblem& fp = point.fp;
+  fp.set_deflation_basis(point.forward_modes);
+  detail::BlockKktSystem shared(fp, /*shared_factorization=*/true), per_mode(fp);
+  std::string error;
+  ASSERT_TRUE(shared.build(point.x, point.y, &error)) << error;
+  ASSERT_TRUE(per_mode.build(point.x, point.y, &error)) << error;
+  EXPECT_EQ(shared.shared_eliminations(), fp.num_modes());
+  EXPECT_EQ(shared.shared_failures(), 0);
+  const Vector dq = shared.reduced_hessian().fullPivLu().solve(shared.reduced_rhs());
+  Vector dx, dy;
+  shared.step(dq, &dx, &dy);
+  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
+  Vector rhs(K.rows()), step(K.rows());
+  rhs << -shared.lagrangian_gradient(), -shared.constraints();
+  step << dx, dy;
+  // CG stops at a backward error of 1e-13 per bordered solve; the whole step keeps it to 1e-11.
+  EXPECT_LT(BackwardError(K, step, rhs), 1e-11);
+  const double scale = per_mode.reduced_hessian().cwiseAbs().maxCoeff();
+  EXPECT_LT((shared.reduced_hessian() - per_mode.reduced_hessian()).cwiseAbs().maxCoeff(), 1e-9 * scale);
+  for (int i = 0; i < fp.num_modes(); ++i) EXPECT_EQ(shared.mode_index(i), per_mode.mode_index(i)) << "mode " << i + 1;
+}
+
+TEST(BlockKkt, ABasisWithoutTheLowerModesFallsBackToFactoringTheirBlocks) {
+  // Deflated by the highest forward mode alone, the blocks of the modes above the lowest are
+  // indefinite beyond the basis: CG meets a negative curvature (or does not converge), and the
+  // elimination factors those blocks instead - the step stays right.
+  PerturbedPoint point(/*coarse=*/false);
+  detail::FullSpaceProblem& fp = point.fp;
+  fp.set_deflation_basis(point.forward_modes.rightCols(1));
+  detail::BlockKktSystem kkt(fp, /*shared_factorization=*/true);
+  std::string error;
+  ASSERT_TRUE(kkt.build(point.x, point.y, &error)) << error;
+  EXPECT_GT(kkt.shared_failures(), 0);
+  EXPECT_EQ(kkt.shared_eliminations() + kkt.shared_failures(), fp.num_modes());
+  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
+  Vector dx, dy;
+  kkt.step(dq, &dx, &dy);
+  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
+  Vector rhs(K.rows()), step(K.rows());
+  rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
+  step << dx, dy;
+  EXPECT_LT(BackwardError(K, step, rhs), 1e-11);
+}
+
 TEST(StructuredKkt, InertiaAndSolutionMatchDenseLinearAlgebra) {
   // Ipopt's inertia correction reads the number of negative eigenvalues: it must be exact, both
   // where it is right (n_c) and where the correction has to act (more than n_c).
@@ -212,6 +264,32 @@ TEST(StructuredKkt, InertiaAndSolutionMatchDenseLinearAlgebra) {
   EXPECT_TRUE(saw_right && saw_wrong);
   EXPECT_EQ(counts.structured, calls);
   EXPECT_EQ(counts.mumps, 0);
+}
+
+TEST(StructuredKkt, WithOneSharedFactorizationInertiaAndSolutionMatchDenseLinearAlgebra) {
+  // As above, with the modes' bordered blocks solved by deflated CG on one factorization at the
+  // point of the problem's last Jacobian (which Kkt() evaluates, as Ipopt does before factoring).
+  PerturbedPoint point(/*coarse=*/true);
+  detail::FullSpaceProblem& fp = point.fp;
+  fp.set_deflation_basis(point.forward_modes);
+  detail::KktFactorizationCounts counts;
+  const detail::StructuredKktScope scope(fp, &counts, /*shared_factorization=*/true);
+  detail::Uniform random_draws(13);
+  Vector rhs(fp.num_variables() + fp.num_constraints());
+  for (int k = 0; k < rhs.size(); ++k) rhs[k] = random_draws(-1, 1);
+  const int np = fp.num_parameters();
+  int calls = 0;
+  for (const auto& [delta_w, sigma] : std::vector<std::pair<double, double>>{{0.0, 0.0}, {1e-2, 1.0}, {0.0, -1e3}}) {
+    const SparseMatrix K = point.Kkt(delta_w, Vector::Constant(np, sigma));
+    const TrampolineResult r = SolveThroughTheTrampoline(K, rhs);
+    ++calls;
+    ASSERT_EQ(r.error, 0) << "delta_w " << delta_w << ", sigma " << sigma;
+    EXPECT_EQ(r.negatives, DenseNegatives(K)) << "delta_w " << delta_w << ", sigma " << sigma;
+    EXPECT_LT(BackwardError(K, r.solution, rhs), 1e-11) << "delta_w " << delta_w << ", sigma " << sigma;
+  }
+  EXPECT_EQ(counts.structured, calls);
+  EXPECT_EQ(counts.shared_modes, calls * fp.num_modes());
+  EXPECT_EQ(counts.shared_failures, 0);
 }
 
 TEST(StructuredKkt, ASingularModeBlockIsReportedAsSingular) {

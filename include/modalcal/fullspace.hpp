@@ -98,6 +98,19 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   ///    few thousand DOFs).
   enum class KktSolver { Structured, Mumps };
   KktSolver kkt_solver = KktSolver::Structured;
+  /// How the structured solves (KktSolver::Structured and BlockElimination) solve each mode's
+  /// bordered block \f$B_i = [[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ per Newton iteration.
+  ///  - `PerMode`: a sparse LDL^T (MUMPS) of every B_i: l factorizations, l factors in memory.
+  ///  - `Shared`: one Cholesky factorization of K - sigma M (sigma below the spectrum) for all
+  ///    modes, and per mode conjugate gradients deflated by the last forward solve's modes
+  ///    (src/fullspace/shared_shift_solve.hpp); a mode where they fail is factored after all.
+  ///    Cheaper in time and far in memory on large models (docs/benchmarks.md, "One shared
+  ///    factorization for every mode's bordered block"); slightly dearer on small ones.
+  ///  - `Automatic`: Shared from `shared_factorization_min_dofs` free DOFs on, else PerMode.
+  enum class BorderedSolves { Automatic, PerMode, Shared };
+  BorderedSolves bordered_solves = BorderedSolves::Automatic;
+  /// Where Automatic switches to Shared. Range: >= 0.
+  int shared_factorization_min_dofs = 60000;
   enum class Hessian { Exact, LimitedMemory };
   /// Exact Lagrangian Hessian (Newton, quadratic locally) or Ipopt's L-BFGS approximation
   /// (Ipopt only: BlockElimination always uses the exact Hessian).
@@ -222,6 +235,11 @@ struct MODALCAL_EXPORT FullSpaceSummary {
   /// Factorizations by block elimination, and by MUMPS on the whole matrix (with "structured":
   /// the fallbacks, e.g. in Ipopt's restoration phase; with "mumps" not counted).
   int structured_factorizations = 0, mumps_factorizations = 0;
+  /// "per-mode" or "shared" (FullSpaceOptions::bordered_solves as it applied to this model;
+  /// empty for KktSolver::Mumps); with "shared", the mode eliminations done through the shared
+  /// factorization and the modes it failed (factored instead).
+  std::string bordered_solves;
+  int shared_eliminations = 0, shared_failures = 0;
   /// Status of the Newton phase's last attempt: Ipopt's return status (e.g. Solve_Succeeded), or
   /// the block solver's (Converged, Maximum_Iterations_Exceeded, Outside_Newton_Region,
   /// Singular_Mode_Block, User_Requested_Stop), or Stopped_At_Rounding_Floor (see tolerance).

@@ -51,6 +51,7 @@ struct CalibrateArgs {
   bool no_crossing_escape = false;
   std::string newton_solver = to_string(FullSpaceOptions().newton_solver);
   std::string kkt_solver = to_string(FullSpaceOptions().kkt_solver);
+  std::string bordered_solves = "auto";
   double mu_init = FullSpaceOptions().mu_init;
   bool limited_memory = false;
   int print_level = 0;
@@ -159,6 +160,9 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
                                                           : FullSpaceOptions::NewtonSolver::Ipopt;
     options.kkt_solver = args.kkt_solver == "mumps" ? FullSpaceOptions::KktSolver::Mumps
                                                      : FullSpaceOptions::KktSolver::Structured;
+    options.bordered_solves = args.bordered_solves == "shared"     ? FullSpaceOptions::BorderedSolves::Shared
+                              : args.bordered_solves == "per-mode" ? FullSpaceOptions::BorderedSolves::PerMode
+                                                                   : FullSpaceOptions::BorderedSolves::Automatic;
     options.mu_init = args.mu_init;
     options.print_level = args.print_level;
     if (args.limited_memory) options.hessian = FullSpaceOptions::Hessian::LimitedMemory;
@@ -399,6 +403,13 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "thousand DOFs)")
       ->check(CLI::IsMember({"structured", "mumps"}))
       ->default_str(args->kkt_solver);
+  cmd->add_option("--bordered-solves", args->bordered_solves,
+                  "fullspace, structured: each mode's bordered block by its own factorization (per-mode) or by "
+                  "deflated CG on one shared factorization of K - sigma M (shared; less memory and time on large "
+                  "models); auto: shared from " +
+                      std::to_string(FullSpaceOptions().shared_factorization_min_dofs) + " DOFs on")
+      ->check(CLI::IsMember({"auto", "per-mode", "shared"}))
+      ->default_str(args->bordered_solves);
   cmd->add_flag("--no-guard", args->no_guard, "fullspace: no forward-solve mode check at every iteration");
   cmd->add_flag("--no-crossing-escape", args->no_crossing_escape,
                 "fullspace: accept a minimum where two measured modes pair with model modes in crossed order (default: "

@@ -3,53 +3,80 @@
 #include <stdexcept>
 
 #include "eigen/block_lanczos.hpp"  // symmetric_times: W_i is stored in full
+#include "fullspace/shared_shift_solve.hpp"
 
 namespace modalcal::detail {
 
 BlockElimination::BlockElimination(int num_modes, int num_parameters, bool keep_factors)
     : np_(num_parameters), keep_factors_(keep_factors), modes_(num_modes), negative_pivots_(num_modes, 0) {
-  if (!keep_factors_) shared_factor_ = std::make_unique<MumpsSymmetricFactor>();
+  if (!keep_factors_) one_factor_ = std::make_unique<MumpsSymmetricFactor>();
 }
 
 BlockElimination::~BlockElimination() = default;
 
-void BlockElimination::begin(const Matrix& parameter_hessian, const Vector* parameter_rhs) {
+void BlockElimination::begin(const Matrix& parameter_hessian, const Vector* parameter_rhs, SharedShiftSolver* shared) {
+  shared_ = shared;
   reduced_hessian_ = parameter_hessian;
   added_ = 0;
   has_rhs_ = parameter_rhs != nullptr;
   reduced_rhs_ = has_rhs_ ? *parameter_rhs : Vector();
 }
 
-Matrix BlockElimination::eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right,
-                                   Matrix* left, const std::function<Matrix(const Matrix&)>& hessian_product) {
+bool BlockElimination::eliminate(const ModeKktBlocks& blocks, const BorderedSolve& solve_bordered, Matrix* right,
+                                 Matrix* left, const std::function<Matrix(const Matrix&)>& hessian_product,
+                                 Matrix* reduction) {
   // A z = e <=> B z = e / s;  A^T w = g <=> B (s w) = g.
   const Vector inverse_scale = blocks.row_scale.cwiseInverse();
   *right = inverse_scale.asDiagonal() * (*right);
-  factor.solve(right);
+  bool solved = solve_bordered(right);
   *left -= hessian_product ? hessian_product(*right) : symmetric_times(blocks.hessian, *right);
-  factor.solve(left);
+  solved = solve_bordered(left) && solved;
   *left = inverse_scale.asDiagonal() * (*left);
   // With right = [a, S] and left = [b, T]: C^T S + P^T T = C^T S + S^T (C - W S) (as T = A^{-T}
   // (C - W S) and P = A S), the mode's part of H; C^T a + P^T b its part of h.
-  return blocks.hessian_parameters.transpose() * (*right) + blocks.jacobian_parameters.transpose() * (*left);
+  *reduction = blocks.hessian_parameters.transpose() * (*right) + blocks.jacobian_parameters.transpose() * (*left);
+  return solved;
+}
+
+BlockElimination::BorderedSolve BlockElimination::bordered_solve(int i) {
+  Mode& mode = modes_[i];
+  if (mode.shared) return [this, i](Matrix* x) { return shared_->solve(i, x, nullptr); };
+  MumpsSymmetricFactor* factor = keep_factors_ ? mode.factor.get() : one_factor_.get();
+  return [factor](Matrix* x) {
+    factor->solve(x);
+    return true;
+  };
 }
 
 bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, const Vector* e, std::string* error) {
   Mode& mode = modes_[i];
-  if (keep_factors_ && !mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
-  MumpsSymmetricFactor& factor = keep_factors_ ? *mode.factor : *shared_factor_;
-  if (!factor.factor(blocks.bordered, error)) return false;
-  negative_pivots_[i] = factor.negative_pivots();
   const int n1 = static_cast<int>(blocks.row_scale.size());
   const int rhs = has_rhs_ && f && e ? 1 : 0;
-  Matrix right(n1, rhs + np_), left(n1, rhs + np_);
-  if (rhs) {
-    right.col(0) = *e;
-    left.col(0) = *f;
+  Matrix right(n1, rhs + np_), left(n1, rhs + np_), reduction;
+  auto fill = [&] {
+    if (rhs) {
+      right.col(0) = *e;
+      left.col(0) = *f;
+    }
+    right.rightCols(np_) = blocks.jacobian_parameters;
+    left.rightCols(np_) = blocks.hessian_parameters;
+  };
+  fill();
+  mode.shared = shared_ && shared_->agrees_with(i, blocks.bordered);
+  if (mode.shared && eliminate(blocks, bordered_solve(i), &right, &left, {}, &reduction)) {
+    ++shared_eliminations_;
+    negative_pivots_[i] = shared_->negative_eigenvalues(i);
+    mode.factor.reset();
+  } else {
+    if (mode.shared) ++shared_failures_;
+    mode.shared = false;
+    if (keep_factors_ && !mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
+    MumpsSymmetricFactor& factor = keep_factors_ ? *mode.factor : *one_factor_;
+    if (!factor.factor(blocks.bordered, error)) return false;
+    negative_pivots_[i] = factor.negative_pivots();
+    fill();
+    eliminate(blocks, bordered_solve(i), &right, &left, {}, &reduction);
   }
-  right.rightCols(np_) = blocks.jacobian_parameters;
-  left.rightCols(np_) = blocks.hessian_parameters;
-  const Matrix reduction = eliminate(blocks, factor, &right, &left, {});
   reduced_hessian_ -= reduction.rightCols(np_);
   mode.S = right.rightCols(np_);
   mode.T = left.rightCols(np_);
@@ -60,7 +87,7 @@ bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, co
   }
   if (++added_ == static_cast<int>(modes_.size())) reduced_hessian_ = 0.5 * (reduced_hessian_ + reduced_hessian_.transpose());
   if (keep_factors_) {
-    release(&blocks.bordered);  // in the factor now
+    release(&blocks.bordered);  // in the factor now, or not needed
     mode.blocks = std::move(blocks);  // a swap: the previous blocks leave with the argument
   }
   return true;
@@ -82,7 +109,10 @@ void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Mat
       if (!hessian_product) throw std::logic_error("BlockElimination::solve: W_i released and no product given");
       product = [&, i](const Matrix& v) { return hessian_product(static_cast<int>(i), v); };
     }
-    *fq -= eliminate(modes_[i].blocks, *modes_[i].factor, &(*e)[i], &(*f)[i], product);  // e_i -> a_i, f_i -> b_i
+    Matrix reduction;  // e_i -> a_i, f_i -> b_i
+    if (!eliminate(modes_[i].blocks, bordered_solve(static_cast<int>(i)), &(*e)[i], &(*f)[i], product, &reduction))
+      ++inexact_solves_;
+    *fq -= reduction;
   }
   solve_reduced(fq);
   for (size_t i = 0; i < modes_.size(); ++i) {

@@ -31,6 +31,8 @@
 
 namespace modalcal::detail {
 
+class SharedShiftSolver;
+
 /// Mode i's blocks, in local indices 0..n (n: the eigenvalue unknown / normalization row).
 struct ModeKktBlocks {
   SparseMatrix bordered;     ///< B_i, lower triangle (entries above the diagonal are ignored)
@@ -63,14 +65,23 @@ class BlockElimination {
   BlockElimination(int num_modes, int num_parameters, bool keep_factors);
   ~BlockElimination();
 
-  /// Starts an elimination with H = W_qq and h = f_q (may be null).
-  void begin(const Matrix& parameter_hessian, const Vector* parameter_rhs);
+  /// Starts an elimination with H = W_qq and h = f_q (may be null). With `shared` (not owned,
+  /// alive until the next begin()), the modes it has set solve with B_i through its one shared
+  /// factorization (shared_shift_solve.hpp) instead of factoring B_i; a mode whose shared solves
+  /// fail (no convergence, a mode missing from its basis) is factored after all.
+  void begin(const Matrix& parameter_hessian, const Vector* parameter_rhs, SharedShiftSolver* shared = nullptr);
   /// Factors mode i's bordered block and adds its part of H; with (f_i, e_i) also its part of
   /// h and the a_i, b_i that expand() uses. False with `error` (MUMPS's words) when B_i is
   /// singular.
   bool add_mode(int i, ModeKktBlocks blocks, const Vector* f, const Vector* e, std::string* error);
   /// Negative pivots of B_i (its inertia, Sylvester).
   int negative_pivots(int i) const { return negative_pivots_[i]; }
+  /// Since construction: modes eliminated through the shared factorization, modes it failed
+  /// (then factored), and solve() calls whose shared solves stopped short of the tolerance (their
+  /// last iterate used).
+  int shared_eliminations() const { return shared_eliminations_; }
+  int shared_failures() const { return shared_failures_; }
+  int inexact_solves() const { return inexact_solves_; }
 
   /// H, symmetrized, once every mode is added.
   const Matrix& reduced_hessian() const { return reduced_hessian_; }
@@ -94,18 +105,25 @@ class BlockElimination {
   struct Mode {
     Matrix S, T;  // (n + 1) x m
     Vector a, b;  // for add_mode's right-hand side
-    std::unique_ptr<MumpsSymmetricFactor> factor;  // keep_factors
+    bool shared = false;                           // B_i solved through shared_
+    std::unique_ptr<MumpsSymmetricFactor> factor;  // keep_factors, unless shared
     ModeKktBlocks blocks;                          // keep_factors (without B_i)
   };
+  // In place B_i^{-1} X; false when it could not be solved to its tolerance.
+  using BorderedSolve = std::function<bool(Matrix*)>;
   // right = [e ...] -> A^{-1} right; left = [f ...] -> A^{-T} (left - W A^{-1} right), column by
-  // column; returns C^T right + P^T left (the columns' part of h, or of H).
-  static Matrix eliminate(const ModeKktBlocks& blocks, MumpsSymmetricFactor& factor, Matrix* right, Matrix* left,
-                          const std::function<Matrix(const Matrix&)>& hessian_product);
+  // column; *reduction = C^T right + P^T left (the columns' part of h, or of H). False when a
+  // solve with B_i fell short (the results are then its last iterates).
+  static bool eliminate(const ModeKktBlocks& blocks, const BorderedSolve& solve_bordered, Matrix* right, Matrix* left,
+                        const std::function<Matrix(const Matrix&)>& hessian_product, Matrix* reduction);
+  BorderedSolve bordered_solve(int i);
   int np_;
   bool keep_factors_;
   std::vector<Mode> modes_;
   std::vector<int> negative_pivots_;
-  std::unique_ptr<MumpsSymmetricFactor> shared_factor_;  // without keep_factors
+  std::unique_ptr<MumpsSymmetricFactor> one_factor_;  // without keep_factors: reused mode after mode
+  SharedShiftSolver* shared_ = nullptr;
+  int shared_eliminations_ = 0, shared_failures_ = 0, inexact_solves_ = 0;
   Matrix reduced_hessian_;
   Vector reduced_rhs_;
   bool has_rhs_ = false;

@@ -4,12 +4,13 @@
 
 namespace modalcal::detail {
 
-BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem)
+BlockKktSystem::BlockKktSystem(FullSpaceProblem& problem, bool shared_factorization)
     : problem_(problem),
       n_(problem.num_dofs()),
       l_(problem.num_modes()),
       np_(problem.num_parameters()),
-      elimination_(problem.num_modes(), problem.num_parameters(), /*keep_factors=*/false) {
+      elimination_(problem.num_modes(), problem.num_parameters(), /*keep_factors=*/false),
+      shared_factorization_(shared_factorization) {
   auto read = [](const SparseLayout& layout, std::vector<int>* rows, std::vector<int>* cols, std::vector<Slot>* slots) {
     rows->resize(layout.nonzeros());
     cols->resize(layout.nonzeros());
@@ -75,7 +76,8 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
     if (s.row != s.col) parameter_hessian(s.col, s.row) += hes_values_[k];
   }
   const Vector parameter_rhs = -lagrangian_gradient_.tail(np_);
-  elimination_.begin(parameter_hessian, &parameter_rhs);
+  if (shared_factorization_) shared_ = shared_shift_solver(problem_, x.data(), nullptr);
+  elimination_.begin(parameter_hessian, &parameter_rhs, shared_.get());
   for (int i = 0; i < l_; ++i) {
     Vector f(n_ + 1), e(n_ + 1);  // the right-hand side: -g_i, -c_i
     for (int a = 0; a <= n_; ++a) {
@@ -92,6 +94,7 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
     }
     mode_index_[i] = elimination_.negative_pivots(i);
   }
+  shared_.reset();  // step() needs only what the elimination kept
   return true;
 }
 

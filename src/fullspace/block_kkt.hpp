@@ -6,17 +6,22 @@
 // solves, against Ipopt-with-MUMPS's factorization of the whole 2 l (n + 1) + m KKT matrix
 // (docs/benchmarks.md: where the time goes).
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "fullspace/fullspace_problem.hpp"
 #include "fullspace/block_elimination.hpp"
+#include "fullspace/shared_shift_solve.hpp"
 
 namespace modalcal::detail {
 
 class BlockKktSystem {
  public:
-  explicit BlockKktSystem(FullSpaceProblem& problem);
+  /// With `shared_factorization`, the modes' bordered blocks are solved through one
+  /// factorization of K - sigma M per build (shared_shift_solve.hpp; the problem's deflation
+  /// basis must be set), a mode where that fails by its own factorization.
+  explicit BlockKktSystem(FullSpaceProblem& problem, bool shared_factorization = false);
 
   /// Evaluates the derivatives at (x, y) and eliminates every mode. False (with `error` naming
   /// the mode and the likely cause) when a bordered block is singular.
@@ -32,6 +37,9 @@ class BlockKktSystem {
   /// Negative pivots of B_i: the index (1-based) of the eigenpair u_i is near, by Sylvester's law
   /// (B_i's inertia is that of K - lambda M on the M-complement of u_i, plus one of each sign).
   int mode_index(int i) const { return mode_index_[i]; }
+  /// Mode eliminations through the shared factorization, and its failures (then factored).
+  int shared_eliminations() const { return elimination_.shared_eliminations(); }
+  int shared_failures() const { return elimination_.shared_failures(); }
 
   /// The full step (dx, dy) for a parameter step dq.
   void step(const Vector& dq, Vector* dx, Vector* dy) const;
@@ -53,6 +61,8 @@ class BlockKktSystem {
   std::vector<int> parameter_pairs_;                          // Hessian q-q entries
   std::vector<double> jac_values_, hes_values_;
   BlockElimination elimination_;
+  bool shared_factorization_ = false;
+  std::unique_ptr<SharedShiftSolver> shared_;
   std::vector<int> mode_index_;
   Vector lagrangian_gradient_, constraints_, objective_gradient_;
 };

@@ -124,7 +124,7 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
   NewtonPhaseResult result;
   const int np = problem.num_parameters(), q0 = problem.parameter_offset();
   const Bounds bounds = parameter_bounds(problem);
-  BlockKktSystem kkt(problem);
+  BlockKktSystem kkt(problem, options.shared_factorization);
   Vector x = x0, y = y0;
   FilterLineSearch line_search;
   double radius = 1;
@@ -135,6 +135,8 @@ NewtonPhaseResult run_block_newton(FullSpaceProblem& problem, const Vector& x0, 
     result.message = message;
     result.x = x;
     result.y = y;
+    result.shared_modes = kkt.shared_eliminations();
+    result.shared_failures = kkt.shared_failures();
     result.objective = problem.objective(x.data());
     return result;
   };

@@ -88,6 +88,7 @@ class FullSpaceDriver {
   std::unique_ptr<Problem> eigenvalue_problem_;
   std::optional<ParameterScaling> scaling_;
   std::unique_ptr<FullSpaceProblem> fp_;
+  bool shared_factorization_ = false;  // FullSpaceOptions::bordered_solves, decided for fp_'s size
 };
 
 }  // namespace modalcal::detail

@@ -163,6 +163,13 @@ const SparseMatrix& FullSpaceProblem::mass_matrix(const double* x) {
   return M_;
 }
 
+const SparseMatrix& FullSpaceProblem::stiffness_matrix(const double* x) {
+  update(x);
+  return K_;
+}
+
+void FullSpaceProblem::set_deflation_basis(const Matrix& modes) { deflation_basis_ = modes; }
+
 Vector FullSpaceProblem::pack(const Matrix& modes, const Vector& eigenvalues, const Vector& p) const {
   Vector x(num_variables());
   for (int i = 0; i < num_modes(); ++i) {
@@ -299,6 +306,7 @@ void FullSpaceProblem::constraints(const double* x, double* c) {
 
 void FullSpaceProblem::jacobian_values(const double* x, double* values) {
   update(x);
+  jacobian_point_ = Eigen::Map<const Vector>(x, num_variables());
   const double s2 = mode_scale_ * mode_scale_;
   for (int i = 0; i < num_modes(); ++i) {
     const ModeBlocks& b = blocks_[i];

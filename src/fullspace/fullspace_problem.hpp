@@ -64,8 +64,22 @@ class FullSpaceProblem {
   /// Sign (+1 or -1) that aligns a physical mode with the measured shape of full-space mode i at
   /// the sensors (+1 without a shape).
   double shape_sign(int i, const Vector& u) const;
-  /// M(p(x)), for mass-weighted MAC checks.
+  /// M(p(x)), for mass-weighted MAC checks; K(p(x)). Both in full, on one pattern.
   const SparseMatrix& mass_matrix(const double* x);
+  const SparseMatrix& stiffness_matrix(const double* x);
+  /// Mode i's scaled eigenvector u~_i, eigenvalue ratio t_i = lambda_i / lambda_ref,i and
+  /// reference eigenvalue lambda_ref,i (the measured one): B_i's ingredients.
+  Eigen::Map<const Vector> mode_vector(const double* x, int i) const { return mode(x, i); }
+  double eigenvalue_ratio(const double* x, int i) const { return x[num_modes() * n_ + i]; }
+  double reference_eigenvalue(int i) const { return lambda_ref_[i]; }
+  /// Approximate eigenvectors of (K, M) near the current parameters - the last forward solve's,
+  /// rigid-body and unmeasured modes included - that deflate the shared-factorization solves
+  /// of the bordered blocks (shared_shift_solve.hpp). Empty until set.
+  void set_deflation_basis(const Matrix& modes);
+  const Matrix& deflation_basis() const { return deflation_basis_; }
+  /// x of the last jacobian_values() call: where an optimizer's next KKT matrix is linearized
+  /// (empty before the first).
+  const Vector& jacobian_point() const { return jacobian_point_; }
   const ParameterScaling& scaling() const { return scaling_; }
 
  private:
@@ -83,7 +97,6 @@ class FullSpaceProblem {
   void register_layouts();
   void update(const double* x);  // K, M and their parameter derivatives at p(q)
   Eigen::Map<const Vector> mode(const double* x, int i) const { return Eigen::Map<const Vector>(x + i * n_, n_); }
-  double eigenvalue_ratio(const double* x, int i) const { return x[num_modes() * n_ + i]; }
   Eigen::Map<const Vector> scaled_parameters(const double* x) const {
     return Eigen::Map<const Vector>(x + num_modes() * (n_ + 1), np_);
   }
@@ -116,6 +129,8 @@ class FullSpaceProblem {
   // K and M only: the derivatives dK_j, dM_j enter as products (ParametricSystem::derivative_times),
   // which touch only parameter j's terms; formed, each would hold pattern(K)'s size.
   SparseMatrix K_, M_;
+  Matrix deflation_basis_;
+  Vector jacobian_point_;
 };
 
 }  // namespace modalcal::detail

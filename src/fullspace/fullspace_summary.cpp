@@ -43,6 +43,8 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
   if (!(globalization_reduction > 0 && globalization_reduction <= 1))
     return bad("globalization_reduction = " + std::to_string(globalization_reduction) + ": must be in (0, 1]");
   if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + std::to_string(guard_mac) + ": must be in (0, 1)");
+  if (shared_factorization_min_dofs < 0)
+    return bad("shared_factorization_min_dofs = " + std::to_string(shared_factorization_min_dofs) + ": must be >= 0");
   if (!(guard_step >= 0 && guard_step <= 0.1))
     return bad("guard_step = " + std::to_string(guard_step) + ": must be in [0, 0.1]");
   if (max_restarts < 0) return bad("max_restarts = " + std::to_string(max_restarts) + ": must be >= 0");
@@ -85,6 +87,12 @@ std::string FullSpaceSummary::FullReport() const {
   std::snprintf(line, sizeof line, "KKT factorizations: %d by block elimination, %d by MUMPS on the whole matrix\n",
                 structured_factorizations, mumps_factorizations);
   out += line;
+  if (bordered_solves == "shared") {
+    std::snprintf(line, sizeof line,
+                  "bordered blocks: %d mode eliminations through one shared factorization, %d factored instead\n",
+                  shared_eliminations, shared_failures);
+    out += line;
+  }
   std::snprintf(line, sizeof line, "unknowns %d, constraints %d; time: Newton phase %.2f s, mode guard %.2f s, total %.2f s\n",
                 num_unknowns, num_constraints, newton_seconds, guard_seconds, seconds);
   out += line;

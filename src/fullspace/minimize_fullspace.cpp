@@ -198,6 +198,12 @@ void FullSpaceDriver::set_up_newton(const Vector& p) {
   summary_.num_unknowns = fp_->num_variables();
   summary_.num_constraints = fp_->num_constraints();
   summary_.newton_solver = to_string(options_.newton_solver);
+  using Solves = FullSpaceOptions::BorderedSolves;
+  shared_factorization_ = summary_.kkt_solver == "structured" &&
+                          (options_.bordered_solves == Solves::Shared ||
+                           (options_.bordered_solves == Solves::Automatic &&
+                            fp_->num_dofs() >= options_.shared_factorization_min_dofs));
+  if (summary_.kkt_solver == "structured") summary_.bordered_solves = shared_factorization_ ? "shared" : "per-mode";
 }
 
 Vector FullSpaceDriver::globalize_on(Objective& on, const Vector& from, int iterations) {
@@ -247,6 +253,7 @@ std::optional<std::string> FullSpaceDriver::newton_start(const Vector& p, Vector
   }
   *x0 = fp.pack(U, lambda, p);
   *y0 = fp.pack_multipliers(W, eta);
+  if (shared_factorization_) fp_->set_deflation_basis(e.modal.modes);
   return std::nullopt;
 }
 
@@ -271,6 +278,7 @@ NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
       const Evaluation forward = objective_.evaluate(record.p, Need::Value);
       double min_mac = 0;
       if (forward.ok) {
+        if (shared_factorization_) fp.set_deflation_basis(forward.modal.modes);  // nearer the iterate's p
         const SparseMatrix& M = fp.mass_matrix(x);
         min_mac = 1;
         for (int i = 0; i < fp.num_modes(); ++i) {
@@ -318,6 +326,7 @@ NewtonPhaseOptions FullSpaceDriver::newton_options() const {
   newton.derivative_test = options_.ipopt_derivative_test;
   newton.print_level = options_.print_level;
   newton.structured_kkt = options_.kkt_solver == FullSpaceOptions::KktSolver::Structured;
+  newton.shared_factorization = shared_factorization_;
   return newton;
 }
 
@@ -341,6 +350,8 @@ FullSpaceDriver::Outcome FullSpaceDriver::solve_from(Vector p) {
     summary_.kkt_solves += run.hessian_evaluations;
     summary_.structured_factorizations += run.structured_factorizations;
     summary_.mumps_factorizations += run.mumps_factorizations;
+    summary_.shared_eliminations += run.shared_modes;
+    summary_.shared_failures += run.shared_failures;
     summary_.newton_status = run.status;
     if (run.outside_newton_region && summary_.restarts < options_.max_restarts &&
         summary_.iterations < options_.max_iterations) {

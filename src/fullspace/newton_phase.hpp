@@ -19,6 +19,9 @@ struct NewtonPhaseOptions {
   /// Ipopt only: its KKT systems by the structured solver (fullspace/structured_kkt.hpp) rather
   /// than MUMPS on the whole matrix.
   bool structured_kkt = true;
+  /// Structured solves (Ipopt's and the block solver's): every mode's bordered block through one
+  /// factorization of K - sigma M (fullspace/shared_shift_solve.hpp) instead of one per mode.
+  bool shared_factorization = false;
   /// Ipopt only, for tests: begin in Ipopt's feasibility restoration phase.
   bool start_with_restoration = false;
   int print_level = 0;
@@ -63,6 +66,8 @@ struct NewtonPhaseResult {
   /// KKT factorizations by block elimination and by MUMPS on the whole matrix (Ipopt: every
   /// inertia correction is one more; the block solver counts one structured per system).
   int structured_factorizations = 0, mumps_factorizations = 0;
+  /// With shared_factorization: mode eliminations through it, and modes it failed (factored).
+  int shared_modes = 0, shared_failures = 0;
   std::string message;      ///< for failures: what went wrong and what it likely means
 };
 

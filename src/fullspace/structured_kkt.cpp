@@ -9,14 +9,16 @@
 #include "fullspace/block_elimination.hpp"
 #include "fullspace/ipopt/pardiso_trampoline.h"
 #include "fullspace/mumps_factor.hpp"
+#include "fullspace/shared_shift_solve.hpp"
 
 namespace modalcal::detail {
 
 namespace {
 
 struct Registration {
-  const FullSpaceProblem* problem = nullptr;
+  FullSpaceProblem* problem = nullptr;
   KktFactorizationCounts* counts = nullptr;
+  bool shared_factorization = false;
 };
 thread_local const Registration* current_registration = nullptr;
 
@@ -220,13 +222,23 @@ class KktInstance {
         if (e.row != e.col) parameter_hessian(e.col, e.row) += a[k];
       }
     });
-    elimination_->begin(parameter_hessian, nullptr);
+    // Ipopt's matrix is linearized where it last evaluated the Jacobian; add_mode() checks that
+    // the shared solver's B_i agree with the matrix's.
+    shared_.reset();
+    if (registration_.shared_factorization)
+      shared_ = shared_shift_solver(*registration_.problem, registration_.problem->jacobian_point().data(), nullptr);
+    const int shared_before = elimination_->shared_eliminations(), failed_before = elimination_->shared_failures();
+    elimination_->begin(parameter_hessian, nullptr, shared_.get());
     for (int i = 0; i < l; ++i) {
       std::string why;
       if (!elimination_->add_mode(i, mode_blocks(p, i, a, ia, ja, std::move(jacobian_parameters[i])), nullptr, nullptr,
                                   &why))
         return kSingular;
       elimination_->release_hessian(i);  // the solves read W_i from Ipopt's values
+    }
+    if (registration_.counts) {
+      registration_.counts->shared_modes += elimination_->shared_eliminations() - shared_before;
+      registration_.counts->shared_failures += elimination_->shared_failures() - failed_before;
     }
     // Inertia from H's eigenvalues; a numerically zero one counts as negative, so that Ipopt
     // raises delta_w (which makes H definite) rather than delta_c (which would leave the layout).
@@ -266,6 +278,7 @@ class KktInstance {
   bool structured_ = false, whole_used_ = false;
   std::vector<int> multiplier_diagonal_;  // positions of the (y, y) diagonal: -delta_c
   std::unique_ptr<BlockElimination> elimination_;
+  std::unique_ptr<SharedShiftSolver> shared_;  // with Registration::shared_factorization
   Matrix reduced_inverse_;
   std::unique_ptr<MumpsSymmetricFactor> whole_;
 };
@@ -295,10 +308,11 @@ extern "C" int structured_kkt_handler(void** handle, int phase, int n, const dou
 
 }  // namespace
 
-StructuredKktScope::StructuredKktScope(const FullSpaceProblem& problem, KktFactorizationCounts* counts)
+StructuredKktScope::StructuredKktScope(FullSpaceProblem& problem, KktFactorizationCounts* counts,
+                                       bool shared_factorization)
     : previous_(current_registration) {
   modalcal_set_kkt_handler(&structured_kkt_handler);
-  current_registration = new Registration{&problem, counts};
+  current_registration = new Registration{&problem, counts, shared_factorization};
 }
 
 StructuredKktScope::~StructuredKktScope() {

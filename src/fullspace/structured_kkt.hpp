@@ -18,14 +18,19 @@ namespace modalcal::detail {
 struct KktFactorizationCounts {
   int structured = 0;
   int mumps = 0;  ///< whole-matrix fallbacks
+  /// Mode eliminations through one shared factorization (shared_shift_solve.hpp), and modes
+  /// where its solves failed and B_i was factored instead.
+  int shared_modes = 0, shared_failures = 0;
 };
 
 /// While alive, Ipopt runs in this thread that use `linear_solver pardiso` get the structured
-/// solver for `problem`'s layout and count their factorizations in `counts`. Installs the handler
-/// into the trampoline library.
+/// solver for `problem`'s layout and count their factorizations in `counts`; with
+/// `shared_factorization`, the modes' bordered blocks are solved through one factorization of
+/// K - sigma M at the point of the problem's last Jacobian (shared_shift_solve.hpp). Installs the
+/// handler into the trampoline library.
 class StructuredKktScope {
  public:
-  StructuredKktScope(const FullSpaceProblem& problem, KktFactorizationCounts* counts);
+  StructuredKktScope(FullSpaceProblem& problem, KktFactorizationCounts* counts, bool shared_factorization = false);
   ~StructuredKktScope();
   StructuredKktScope(const StructuredKktScope&) = delete;
   StructuredKktScope& operator=(const StructuredKktScope&) = delete;

@@ -188,7 +188,7 @@ NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const V
   // Declared before the application: Ipopt's solver instances must not outlive the registration.
   KktFactorizationCounts counts;
   std::optional<StructuredKktScope> structured;
-  if (options.structured_kkt) structured.emplace(problem, &counts);
+  if (options.structured_kkt) structured.emplace(problem, &counts, options.shared_factorization);
   Ipopt::SmartPtr<Ipopt::TNLP> tnlp = new CalibrationTnlp(problem, x0, y0, options.mu_init, callback, &result);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   Ipopt::OptionsList& o = *app->Options();
@@ -227,6 +227,8 @@ NewtonPhaseResult run_ipopt(FullSpaceProblem& problem, const Vector& x0, const V
   result.status = status_name(status);
   result.structured_factorizations = counts.structured;
   result.mumps_factorizations = counts.mumps;
+  result.shared_modes = counts.shared_modes;
+  result.shared_failures = counts.shared_failures;
   result.solved = status == Ipopt::Solve_Succeeded || status == Ipopt::Solved_To_Acceptable_Level;
   result.stopped_by_callback = status == Ipopt::User_Requested_Stop;
   result.max_iterations = status == Ipopt::Maximum_Iterations_Exceeded;
