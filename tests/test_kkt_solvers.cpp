@@ -10,8 +10,10 @@
 
 #include <memory>
 
+#include "fullspace/block_elimination.hpp"
 #include "fullspace/block_kkt.hpp"
 #include "fullspace/fullspace_problem.hpp"
+#include "fullspace/shared_shift_solve.hpp"
 #include "fullspace/structured_kkt.hpp"
 #include "modalcal/fullspace.hpp"
 #include "modalcal/problem_file.hpp"
@@ -234,6 +236,73 @@ TEST(BlockKkt, ABasisWithoutTheLowerModesFallsBackToFactoringTheirBlocks) {
   rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
   step << dx, dy;
   EXPECT_LT(BackwardError(K, step, rhs), 1e-11);
+}
+
+// Mode i's blocks at the point, with made-up W_i (M), C_i and P_i: what BlockElimination needs.
+detail::ModeKktBlocks MadeUpBlocks(detail::FullSpaceProblem& fp, const Vector& x, int i) {
+  const SparseMatrix& K = fp.stiffness_matrix(x.data());
+  const SparseMatrix& M = fp.mass_matrix(x.data());
+  const int n = fp.num_dofs(), m = fp.num_parameters();
+  const Vector Mu = M * fp.mode_vector(x.data(), i);
+  std::vector<Eigen::Triplet<double, int>> lower, hessian;
+  const SparseMatrix A = K / fp.reference_eigenvalue(i) - fp.eigenvalue_ratio(x.data(), i) * M;
+  for (int c = 0; c < A.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(A, c); it; ++it) {
+      if (it.row() >= c) lower.emplace_back(it.row(), c, it.value());
+      hessian.emplace_back(it.row(), c, 1e-3 * it.value());
+    }
+  for (int c = 0; c < n; ++c) lower.emplace_back(n, c, -Mu[c]);
+  detail::ModeKktBlocks blocks;
+  blocks.bordered.resize(n + 1, n + 1);
+  blocks.bordered.setFromTriplets(lower.begin(), lower.end());
+  blocks.hessian.resize(n + 1, n + 1);
+  blocks.hessian.setFromTriplets(hessian.begin(), hessian.end());
+  blocks.row_scale = Vector::Ones(n + 1);
+  blocks.hessian_parameters = Matrix::Constant(n + 1, m, 1e-2);
+  blocks.jacobian_parameters = Matrix::Zero(n + 1, m);
+  for (int j = 0; j < m; ++j) blocks.jacobian_parameters.col(j) = Vector::LinSpaced(n + 1, -1.0 - j, 1.0 + j);
+  return blocks;
+}
+
+TEST(BlockElimination, SharedSolvesThatFallShortInALaterSolveAreReplacedByAFactorization) {
+  // Ipopt solves several right-hand sides per factorization. When the shared solves of one fall
+  // short, the mode's B_i is given again and factored, and the answer is the per-mode one.
+  PerturbedPoint point(/*coarse=*/true);
+  detail::FullSpaceProblem& fp = point.fp;
+  fp.set_deflation_basis(point.forward_modes);
+  detail::SharedShiftSolver shared;
+  std::string error;
+  ASSERT_TRUE(detail::update_shared_shift_solver(fp, point.x.data(), &shared, &error)) << error;
+  const int l = fp.num_modes(), m = fp.num_parameters(), n1 = fp.num_dofs() + 1;
+  detail::BlockElimination with_shared(l, m, /*keep_factors=*/true), per_mode(l, m, /*keep_factors=*/true);
+  const Matrix Wqq = Matrix::Identity(m, m);
+  with_shared.begin(Wqq, nullptr, &shared);
+  per_mode.begin(Wqq, nullptr);
+  for (int i = 0; i < l; ++i) {
+    ASSERT_TRUE(with_shared.add_mode(i, MadeUpBlocks(fp, point.x, i), nullptr, nullptr, &error)) << error;
+    ASSERT_TRUE(per_mode.add_mode(i, MadeUpBlocks(fp, point.x, i), nullptr, nullptr, &error)) << error;
+  }
+  ASSERT_EQ(with_shared.shared_eliminations(), l);
+  detail::SharedShiftOptions starved;
+  starved.max_iterations = 0;  // every later solve falls short
+  shared.set_options(starved);
+  std::vector<Matrix> f(l, Matrix::Ones(n1, 2)), e(l, Matrix::Constant(n1, 2, 0.5)), f2 = f, e2 = e;
+  Matrix fq = Matrix::Ones(m, 2), fq2 = fq;
+  const Matrix H = per_mode.reduced_hessian();
+  auto solve_reduced = [&](Matrix* h) { *h = H.fullPivLu().solve(*h); };
+  int asked = 0;
+  with_shared.solve(&f, &e, &fq, solve_reduced, {}, [&](int i) {
+    ++asked;
+    return MadeUpBlocks(fp, point.x, i).bordered;
+  });
+  per_mode.solve(&f2, &e2, &fq2, solve_reduced);
+  EXPECT_EQ(asked, l);
+  EXPECT_EQ(with_shared.shared_failures(), l);
+  EXPECT_LT((fq - fq2).cwiseAbs().maxCoeff(), 1e-8 * fq2.cwiseAbs().maxCoeff());
+  for (int i = 0; i < l; ++i) {
+    EXPECT_LT((f[i] - f2[i]).cwiseAbs().maxCoeff(), 1e-8 * f2[i].cwiseAbs().maxCoeff()) << "mode " << i + 1;
+    EXPECT_LT((e[i] - e2[i]).cwiseAbs().maxCoeff(), 1e-8 * e2[i].cwiseAbs().maxCoeff()) << "mode " << i + 1;
+  }
 }
 
 TEST(StructuredKkt, InertiaAndSolutionMatchDenseLinearAlgebra) {

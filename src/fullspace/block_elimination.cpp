@@ -28,14 +28,14 @@ bool BlockElimination::eliminate(const ModeKktBlocks& blocks, const BorderedSolv
   // A z = e <=> B z = e / s;  A^T w = g <=> B (s w) = g.
   const Vector inverse_scale = blocks.row_scale.cwiseInverse();
   *right = inverse_scale.asDiagonal() * (*right);
-  bool solved = solve_bordered(right);
+  if (!solve_bordered(right)) return false;
   *left -= hessian_product ? hessian_product(*right) : symmetric_times(blocks.hessian, *right);
-  solved = solve_bordered(left) && solved;
+  if (!solve_bordered(left)) return false;
   *left = inverse_scale.asDiagonal() * (*left);
   // With right = [a, S] and left = [b, T]: C^T S + P^T T = C^T S + S^T (C - W S) (as T = A^{-T}
   // (C - W S) and P = A S), the mode's part of H; C^T a + P^T b its part of h.
   *reduction = blocks.hessian_parameters.transpose() * (*right) + blocks.jacobian_parameters.transpose() * (*left);
-  return solved;
+  return true;
 }
 
 BlockElimination::BorderedSolve BlockElimination::bordered_solve(int i) {
@@ -101,17 +101,28 @@ void BlockElimination::expand(int i, const Vector& dq, Vector* dx, Vector* dy) c
 
 void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
                              const std::function<void(Matrix*)>& solve_reduced,
-                             const std::function<Matrix(int, const Matrix&)>& hessian_product) {
+                             const std::function<Matrix(int, const Matrix&)>& hessian_product,
+                             const std::function<SparseMatrix(int)>& bordered_block) {
   if (!keep_factors_) throw std::logic_error("BlockElimination::solve without kept factors");
   for (size_t i = 0; i < modes_.size(); ++i) {
+    const int mode = static_cast<int>(i);
     std::function<Matrix(const Matrix&)> product;
     if (modes_[i].blocks.hessian.size() == 0) {
       if (!hessian_product) throw std::logic_error("BlockElimination::solve: W_i released and no product given");
-      product = [&, i](const Matrix& v) { return hessian_product(static_cast<int>(i), v); };
+      product = [&, mode](const Matrix& v) { return hessian_product(mode, v); };
     }
     Matrix reduction;  // e_i -> a_i, f_i -> b_i
-    if (!eliminate(modes_[i].blocks, bordered_solve(static_cast<int>(i)), &(*e)[i], &(*f)[i], product, &reduction))
-      ++inexact_solves_;
+    const Matrix e_given = modes_[i].shared ? (*e)[i] : Matrix(), f_given = modes_[i].shared ? (*f)[i] : Matrix();
+    if (!eliminate(modes_[i].blocks, bordered_solve(mode), &(*e)[i], &(*f)[i], product, &reduction)) {
+      // The shared solves fell short on these right-hand sides: factor B_i after all.
+      ++shared_failures_;
+      std::string why;
+      if (!bordered_block || !refactor(mode, bordered_block(mode), &why))
+        throw std::runtime_error("full-space mode " + std::to_string(mode + 1) + ": " + why);
+      (*e)[i] = e_given;
+      (*f)[i] = f_given;
+      eliminate(modes_[i].blocks, bordered_solve(mode), &(*e)[i], &(*f)[i], product, &reduction);
+    }
     *fq -= reduction;
   }
   solve_reduced(fq);
@@ -122,6 +133,15 @@ void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Mat
     b -= modes_[i].T * (*fq);  // dy_i
     a.swap(b);                 // f_i <- dx_i, e_i <- dy_i
   }
+}
+
+bool BlockElimination::refactor(int i, const SparseMatrix& bordered, std::string* error) {
+  Mode& mode = modes_[i];
+  mode.shared = false;
+  if (!mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
+  if (!mode.factor->factor(bordered, error)) return false;
+  negative_pivots_[i] = mode.factor->negative_pivots();
+  return true;
 }
 
 }  // namespace modalcal::detail

@@ -19,7 +19,8 @@
 // eigenvalues (n_c constraints; Gould 1985): Ipopt's inertia test is a test on an m x m matrix.
 // A_i = diag(s_i) B_i with B_i the symmetric bordered eigen-matrix, so one symmetric indefinite
 // factorization per mode serves A_i and A_i^T. Cost per mode: that factorization and 2 (m + 1)
-// solves.
+// solves - or, with a SharedShiftSolver, no factorization of B_i at all: its solves go through
+// one factorization of K - sigma M shared by every mode (shared_shift_solve.hpp).
 
 #include <functional>
 #include <memory>
@@ -70,18 +71,18 @@ class BlockElimination {
   /// factorization (shared_shift_solve.hpp) instead of factoring B_i; a mode whose shared solves
   /// fail (no convergence, a mode missing from its basis) is factored after all.
   void begin(const Matrix& parameter_hessian, const Vector* parameter_rhs, SharedShiftSolver* shared = nullptr);
-  /// Factors mode i's bordered block and adds its part of H; with (f_i, e_i) also its part of
-  /// h and the a_i, b_i that expand() uses. False with `error` (MUMPS's words) when B_i is
-  /// singular.
+  /// Solves with mode i's bordered block B_i (through the shared solver, or by factoring it) and
+  /// adds its part of H; with (f_i, e_i) also its part of h and the a_i, b_i that expand() uses.
+  /// False with `error` (MUMPS's words) when B_i is singular.
   bool add_mode(int i, ModeKktBlocks blocks, const Vector* f, const Vector* e, std::string* error);
   /// Negative pivots of B_i (its inertia, Sylvester).
   int negative_pivots(int i) const { return negative_pivots_[i]; }
-  /// Since construction: modes eliminated through the shared factorization, modes it failed
-  /// (then factored), and solve() calls whose shared solves stopped short of the tolerance (their
-  /// last iterate used).
+  /// Since construction: modes eliminated through the shared factorization, and modes where its
+  /// solves fell short (in add_mode() or solve()) and B_i was factored instead.
   int shared_eliminations() const { return shared_eliminations_; }
   int shared_failures() const { return shared_failures_; }
-  int inexact_solves() const { return inexact_solves_; }
+  /// Counts modes that should have gone through a shared solver that could not be built.
+  void count_shared_failures(int modes) { shared_failures_ += modes; }
 
   /// H, symmetrized, once every mode is added.
   const Matrix& reduced_hessian() const { return reduced_hessian_; }
@@ -92,10 +93,13 @@ class BlockElimination {
   /// Right-hand sides of the whole system, per mode (f_i, e_i: (n + 1) x k) and for q (f_q,
   /// m x k), replaced by the solution (dx_i, dy_i, dq); `solve_reduced` solves H dq = h for the
   /// k columns of h in place. Requires keep_factors.
-  /// `hessian_product(i, v)` gives W_i v for modes whose W_i was released.
+  /// `hessian_product(i, v)` gives W_i v for modes whose W_i was released; `bordered_block(i)`
+  /// B_i's lower triangle again, for a shared mode whose solves fall short on these right-hand
+  /// sides (it is then factored; without it, or when B_i is singular, std::runtime_error).
   void solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Matrix* fq,
              const std::function<void(Matrix*)>& solve_reduced,
-             const std::function<Matrix(int, const Matrix&)>& hessian_product = {});
+             const std::function<Matrix(int, const Matrix&)>& hessian_product = {},
+             const std::function<SparseMatrix(int)>& bordered_block = {});
   /// Frees the kept W_i of mode i (solve() then needs `hessian_product`).
   void release_hessian(int i) { release(&modes_[i].blocks.hessian); }
   /// Frees a sparse matrix's storage (assigning an empty one keeps it).
@@ -117,13 +121,14 @@ class BlockElimination {
   static bool eliminate(const ModeKktBlocks& blocks, const BorderedSolve& solve_bordered, Matrix* right, Matrix* left,
                         const std::function<Matrix(const Matrix&)>& hessian_product, Matrix* reduction);
   BorderedSolve bordered_solve(int i);
+  bool refactor(int i, const SparseMatrix& bordered, std::string* error);  // kept factor of B_i
   int np_;
   bool keep_factors_;
   std::vector<Mode> modes_;
   std::vector<int> negative_pivots_;
   std::unique_ptr<MumpsSymmetricFactor> one_factor_;  // without keep_factors: reused mode after mode
   SharedShiftSolver* shared_ = nullptr;
-  int shared_eliminations_ = 0, shared_failures_ = 0, inexact_solves_ = 0;
+  int shared_eliminations_ = 0, shared_failures_ = 0;
   Matrix reduced_hessian_;
   Vector reduced_rhs_;
   bool has_rhs_ = false;

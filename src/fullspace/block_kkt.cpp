@@ -76,8 +76,15 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
     if (s.row != s.col) parameter_hessian(s.col, s.row) += hes_values_[k];
   }
   const Vector parameter_rhs = -lagrangian_gradient_.tail(np_);
-  if (shared_factorization_) shared_ = shared_shift_solver(problem_, x.data(), nullptr);
-  elimination_.begin(parameter_hessian, &parameter_rhs, shared_.get());
+  SharedShiftSolver* shared = nullptr;
+  if (shared_factorization_) {
+    if (!shared_) shared_ = std::make_unique<SharedShiftSolver>();
+    if (update_shared_shift_solver(problem_, x.data(), shared_.get(), nullptr))
+      shared = shared_.get();
+    else
+      elimination_.count_shared_failures(l_);  // every mode factored
+  }
+  elimination_.begin(parameter_hessian, &parameter_rhs, shared);
   for (int i = 0; i < l_; ++i) {
     Vector f(n_ + 1), e(n_ + 1);  // the right-hand side: -g_i, -c_i
     for (int a = 0; a <= n_; ++a) {
@@ -94,7 +101,6 @@ bool BlockKktSystem::build(const Vector& x, const Vector& y, std::string* error)
     }
     mode_index_[i] = elimination_.negative_pivots(i);
   }
-  shared_.reset();  // step() needs only what the elimination kept
   return true;
 }
 

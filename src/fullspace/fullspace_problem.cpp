@@ -168,7 +168,10 @@ const SparseMatrix& FullSpaceProblem::stiffness_matrix(const double* x) {
   return K_;
 }
 
-void FullSpaceProblem::set_deflation_basis(const Matrix& modes) { deflation_basis_ = modes; }
+void FullSpaceProblem::set_deflation_basis(const Matrix& modes) {
+  deflation_basis_ = modes;
+  ++deflation_basis_version_;
+}
 
 Vector FullSpaceProblem::pack(const Matrix& modes, const Vector& eigenvalues, const Vector& p) const {
   Vector x(num_variables());

@@ -77,6 +77,8 @@ class FullSpaceProblem {
   /// of the bordered blocks (shared_shift_solve.hpp). Empty until set.
   void set_deflation_basis(const Matrix& modes);
   const Matrix& deflation_basis() const { return deflation_basis_; }
+  /// Counts set_deflation_basis() calls: a solver built on the basis knows when it changed.
+  long deflation_basis_version() const { return deflation_basis_version_; }
   /// x of the last jacobian_values() call: where an optimizer's next KKT matrix is linearized
   /// (empty before the first).
   const Vector& jacobian_point() const { return jacobian_point_; }
@@ -130,6 +132,7 @@ class FullSpaceProblem {
   // which touch only parameter j's terms; formed, each would hold pattern(K)'s size.
   SparseMatrix K_, M_;
   Matrix deflation_basis_;
+  long deflation_basis_version_ = 0;
   Vector jacobian_point_;
 };
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "eigen/block_lanczos.hpp"  // symmetric_times
 #include "eigen/cholmod_factor.hpp"
@@ -11,18 +12,31 @@
 
 namespace modalcal::detail {
 
+namespace {
+
+bool same_pattern(const SparseMatrix& a, const SparseMatrix& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() && a.nonZeros() == b.nonZeros() && a.isCompressed() &&
+         b.isCompressed() &&
+         std::memcmp(a.outerIndexPtr(), b.outerIndexPtr(), sizeof(int) * (a.outerSize() + 1)) == 0 &&
+         std::memcmp(a.innerIndexPtr(), b.innerIndexPtr(), sizeof(int) * a.nonZeros()) == 0;
+}
+
+}  // namespace
+
 SharedShiftSolver::SharedShiftSolver(SharedShiftOptions options) : options_(options) {}
 SharedShiftSolver::~SharedShiftSolver() = default;
 
 bool SharedShiftSolver::factor(const SparseMatrix& K, const SparseMatrix& M, double sigma, const Matrix& basis,
                                std::string* error) {
-  if (K.rows() != M.rows() || K.nonZeros() != M.nonZeros() || basis.rows() != K.rows()) {
-    if (error) *error = "K, M and the basis must have one size, and K and M one pattern";
+  modes_.clear();
+  if (!same_pattern(K, M) || basis.rows() != K.rows()) {
+    if (error) *error = "K and M must share one compressed pattern, and the basis their size";
     return false;
   }
+  const bool analysed = factor_ && same_pattern(K, K_);
   K_ = K;
   M_ = M;
-  if (!factor_ || factor_->rows() != K.rows()) factor_ = std::make_unique<CholmodFactor>(K_);
+  if (!analysed) factor_ = std::make_unique<CholmodFactor>(K_);  // the symbolic analysis, once per pattern
   int failed = -1;
   if (!factor_->factorize(K_, M_, sigma, &failed)) {
     if (error)
@@ -30,8 +44,9 @@ bool SharedShiftSolver::factor(const SparseMatrix& K, const SparseMatrix& M, dou
                std::to_string(failed);
     return false;
   }
-  basis_ = basis;
-  modes_.clear();
+  V_ = basis;
+  KV_ = symmetric_times(K_, V_);
+  MV_ = symmetric_times(M_, V_);
   return true;
 }
 
@@ -44,10 +59,32 @@ Matrix SharedShiftSolver::project_rows(const Mode& mode, Matrix R) const {
   return R;
 }
 
-Matrix SharedShiftSolver::precondition(const Mode& mode, const Matrix& R) const {
-  Matrix Z = factor_->solve(R);
+Matrix SharedShiftSolver::project(const Mode& mode, Matrix Z) const {
   Z -= mode.u * (mode.Mu.transpose() * Z / mode.mu);  // Pi = I - u u^T M / mu
   return Z;
+}
+
+// W = Pi V Q = (V - u a) Q with a = (M u)^T V / mu, held as Q and a only: the n x k products with
+// V are shared by every mode.
+Matrix SharedShiftSolver::W_times(const Mode& mode, const Matrix& C) const {
+  const Matrix QC = mode.Q * C;
+  return V_ * QC - mode.u * (mode.a * QC);
+}
+
+Matrix SharedShiftSolver::W_transpose_times(const Mode& mode, const Matrix& R) const {
+  return mode.Q.transpose() * (V_.transpose() * R - mode.a.transpose() * (mode.u.transpose() * R));
+}
+
+// Pi^T A W C = Pi^T ((A V) Q C - (A u) a Q C), A V = K V / lambda_ref - t M V.
+Matrix SharedShiftSolver::AW_times(const Mode& mode, const Matrix& C) const {
+  const Matrix QC = mode.Q * C;
+  return project_rows(mode, KV_ * (QC / mode.lambda_ref) - MV_ * (mode.ratio * QC) - mode.Au * (mode.a * QC));
+}
+
+// (Pi^T A W)^T Z = W^T A Z for Z in range(Pi) = Q^T ((A V)^T Z - a^T (A u)^T Z).
+Matrix SharedShiftSolver::AW_transpose_times(const Mode& mode, const Matrix& Z) const {
+  const Matrix AVZ = KV_.transpose() * Z / mode.lambda_ref - mode.ratio * (MV_.transpose() * Z);
+  return mode.Q.transpose() * (AVZ - mode.a.transpose() * (mode.Au.transpose() * Z));
 }
 
 void SharedShiftSolver::set_mode(int i, const Vector& mode_vector, double lambda_ref, double ratio) {
@@ -59,27 +96,27 @@ void SharedShiftSolver::set_mode(int i, const Vector& mode_vector, double lambda
   mode.lambda_ref = lambda_ref;
   mode.ratio = ratio;
   mode.Au = apply(mode, mode.u);
-  // |A_i|, the largest absolute row sum (K and M share one pattern, both stored in full).
+  // |A_i|, its largest absolute row sum (K and M share one pattern).
   Vector row_sums = Vector::Zero(K_.rows());
-  for (int col = 0; col < K_.outerSize(); ++col) {
-    SparseMatrix::InnerIterator k(K_, col), mm(M_, col);
-    for (; k && mm; ++k, ++mm) row_sums[k.row()] += std::abs(k.value() / lambda_ref - ratio * mm.value());
-  }
+  for (Eigen::Index k = 0; k < K_.nonZeros(); ++k)
+    row_sums[K_.innerIndexPtr()[k]] += std::abs(K_.valuePtr()[k] / lambda_ref - ratio * M_.valuePtr()[k]);
   mode.norm = row_sums.maxCoeff();
-  // W = Pi V, M-orthonormalized; the direction of V along u (it projects to nearly nothing) drops.
-  Matrix W = basis_ - mode.u * (mode.Mu.transpose() * basis_ / mode.mu);
-  const Eigen::SelfAdjointEigenSolver<Matrix> gram(W.transpose() * symmetric_times(M_, W));
+  // Pi V, M-orthonormalized by Q; V's direction along u projects to nearly nothing and drops.
+  mode.a = mode.Mu.transpose() * V_ / mode.mu;
+  const Matrix MPV = MV_ - mode.Mu * mode.a;  // M Pi V
+  const Matrix PV = V_ - mode.u * mode.a;
+  const Eigen::SelfAdjointEigenSolver<Matrix> gram(PV.transpose() * MPV);
   const Vector& g = gram.eigenvalues();
   const double keep = 1e-8 * std::max(g.size() ? g.maxCoeff() : 0.0, 1e-300);
   std::vector<int> kept;
   for (int j = 0; j < g.size(); ++j)
     if (g[j] > keep) kept.push_back(j);
-  Matrix Q(W.cols(), static_cast<Eigen::Index>(kept.size()));
+  mode.Q.resize(V_.cols(), static_cast<Eigen::Index>(kept.size()));
   for (size_t j = 0; j < kept.size(); ++j)
-    Q.col(static_cast<Eigen::Index>(j)) = gram.eigenvectors().col(kept[j]) / std::sqrt(g[kept[j]]);
-  mode.W = W * Q;
-  mode.AW = project_rows(mode, apply(mode, mode.W));
-  const Eigen::SelfAdjointEigenSolver<Matrix> coarse(mode.W.transpose() * mode.AW);
+    mode.Q.col(static_cast<Eigen::Index>(j)) = gram.eigenvectors().col(kept[j]) / std::sqrt(g[kept[j]]);
+  // E = W^T A W, inverted on its eigenvectors (numerically zero eigenvalues left out).
+  const Eigen::SelfAdjointEigenSolver<Matrix> coarse(
+      W_transpose_times(mode, AW_times(mode, Matrix::Identity(mode.Q.cols(), mode.Q.cols()))));
   const Vector& e = coarse.eigenvalues();
   const double floor = 1e-13 * std::max(e.size() ? e.cwiseAbs().maxCoeff() : 0.0, 1e-300);
   Vector inverse(e.size());
@@ -104,45 +141,65 @@ bool SharedShiftSolver::agrees_with(int i, const SparseMatrix& bordered) const {
       if (it.row() == n && col < n) border[col] += it.value();
       else if (it.row() == col && col < n) seen_diagonal[col] += it.value();
     }
+  // Entry by entry: a parameter that acts on a few DOFs must not hide in a norm over all of them.
   const double tolerance = 1e-10;
-  return (border + mode.Mu).norm() <= tolerance * mode.Mu.norm() &&
-         (seen_diagonal - diagonal).norm() <= tolerance * std::max(diagonal.norm(), 1e-300);
+  const double diagonal_scale = K_.diagonal().cwiseAbs().maxCoeff() / mode.lambda_ref +
+                                std::abs(mode.ratio) * M_.diagonal().cwiseAbs().maxCoeff();
+  return (border + mode.Mu).cwiseAbs().maxCoeff() <= tolerance * mode.Mu.cwiseAbs().maxCoeff() &&
+         (seen_diagonal - diagonal).cwiseAbs().maxCoeff() <= tolerance * std::max(diagonal_scale, 1e-300);
 }
 
 bool SharedShiftSolver::deflated_cg(const Mode& mode, const Matrix& R0, Matrix* Y, std::string* error) {
   const int m = static_cast<int>(R0.cols());
   // The part in span(W) exactly; what is left is A-conjugate to W.
-  *Y = mode.W * (mode.coarse_inverse * (mode.W.transpose() * R0));
-  Matrix R = R0 - mode.AW * (mode.coarse_inverse * (mode.W.transpose() * R0));
-  // Converged at a normwise backward error of `tolerance`: |r| <= tol (|b| + |A| |y|) (2-norms,
-  // |A| by its largest row sum). Relative to |b| alone, a right-hand side that is round-off (a
-  // constraint already met) could never be.
+  const Matrix coarse = mode.coarse_inverse * W_transpose_times(mode, R0);
+  *Y = W_times(mode, coarse);
+  Matrix R = R0 - AW_times(mode, coarse);
+  // Converged at a normwise backward error of `tolerance`: |r| <= tol (|b| + |A| |y|) (2-norms of
+  // the columns, |A| its largest row sum). Relative to |b| alone, a right-hand side that is
+  // round-off (a constraint already met) could never be.
   auto converged = [&](int c) {
     return R.col(c).norm() <= options_.tolerance * (R0.col(c).norm() + mode.norm * Y->col(c).norm());
   };
-  // Search directions A-conjugate to W: z - W E^{-1} (A W)^T z.
-  auto conjugate_to_W = [&](Matrix Z) {
-    Z -= mode.W * (mode.coarse_inverse * (mode.AW.transpose() * Z));
-    return Z;
+  std::vector<int> active;
+  for (int c = 0; c < m; ++c)
+    if (!converged(c)) active.push_back(c);
+  // The active columns' preconditioned residuals z = Pi (K - sigma M)^{-1} r (the columns in the
+  // order of `active`).
+  auto precondition = [&]() -> Matrix {
+    Matrix Ra(R.rows(), static_cast<Eigen::Index>(active.size()));
+    for (size_t a = 0; a < active.size(); ++a) Ra.col(static_cast<Eigen::Index>(a)) = R.col(active[a]);
+    return project(mode, factor_->solve(Ra));
   };
-  std::vector<bool> active(m);
-  bool any = false;
-  for (int c = 0; c < m; ++c) any |= (active[c] = !converged(c));
-  Matrix Z = conjugate_to_W(precondition(mode, R));
-  Matrix P = Z;
-  Vector rz(m);
-  for (int c = 0; c < m; ++c) rz[c] = R.col(c).dot(Z.col(c));
+  // Search directions A-conjugate to W: z - W E^{-1} (A W)^T z.
+  auto conjugate_to_W = [&](const Matrix& Z) -> Matrix {
+    return Z - W_times(mode, mode.coarse_inverse * AW_transpose_times(mode, Z));
+  };
+  Matrix P = Matrix::Zero(R.rows(), m);
+  Vector rz = Vector::Zero(m);
   last_iterations_ = 0;
-  while (any) {
+  for (bool first = true; !active.empty(); first = false) {
+    const Matrix Z = precondition();
+    const Matrix conjugate = conjugate_to_W(Z);
+    for (size_t a = 0; a < active.size(); ++a) {
+      const int c = active[a];
+      const double rz_new = R.col(c).dot(Z.col(static_cast<Eigen::Index>(a)));
+      P.col(c) = conjugate.col(static_cast<Eigen::Index>(a)) + (first ? 0.0 : rz_new / rz[c]) * P.col(c);
+      rz[c] = rz_new;
+    }
     if (last_iterations_ == options_.max_iterations) {
       if (error) *error = "deflated CG did not converge in " + std::to_string(options_.max_iterations) + " iterations";
       return false;
     }
     ++last_iterations_;
-    const Matrix Q = project_rows(mode, apply(mode, P));
-    for (int c = 0; c < m; ++c) {
-      if (!active[c]) continue;
-      const double curvature = P.col(c).dot(Q.col(c));
+    Matrix Pa(P.rows(), static_cast<Eigen::Index>(active.size()));
+    for (size_t a = 0; a < active.size(); ++a) Pa.col(static_cast<Eigen::Index>(a)) = P.col(active[a]);
+    const Matrix Q = project_rows(mode, apply(mode, Pa));
+    std::vector<int> still;
+    for (size_t a = 0; a < active.size(); ++a) {
+      const int c = active[a];
+      const auto q = Q.col(static_cast<Eigen::Index>(a));
+      const double curvature = P.col(c).dot(q);
       if (!(curvature > 0)) {
         if (error)
           *error = "K - lambda M is not definite beyond the deflation basis (curvature " + std::to_string(curvature) +
@@ -151,19 +208,10 @@ bool SharedShiftSolver::deflated_cg(const Mode& mode, const Matrix& R0, Matrix* 
       }
       const double alpha = rz[c] / curvature;
       Y->col(c) += alpha * P.col(c);
-      R.col(c) -= alpha * Q.col(c);
+      R.col(c) -= alpha * q;
+      if (!converged(c)) still.push_back(c);
     }
-    any = false;
-    for (int c = 0; c < m; ++c) any |= (active[c] = active[c] && !converged(c));
-    if (!any) break;
-    // r^T z is unchanged by the conjugation (W^T r = 0), and p already is conjugate to W.
-    Z = conjugate_to_W(precondition(mode, R));
-    for (int c = 0; c < m; ++c) {
-      if (!active[c]) continue;
-      const double rz_new = R.col(c).dot(Z.col(c));
-      P.col(c) = Z.col(c) + (rz_new / rz[c]) * P.col(c);
-      rz[c] = rz_new;
-    }
+    active.swap(still);
   }
   return true;
 }
@@ -177,27 +225,42 @@ bool SharedShiftSolver::solve(int i, Matrix* rhs, std::string* error) {
   Matrix Y;
   const bool converged = deflated_cg(mode, R, &Y, error);
   const Matrix X = Y + mode.u * c.transpose();
-  const Matrix AX = apply(mode, Y) + mode.Au * c.transpose();
+  const Matrix AX = apply(mode, X);
   rhs->topRows(n) = X;
   rhs->row(n) = (mode.u.transpose() * (AX - f)) / mode.mu;
-  return converged;
+  if (!converged) return false;
+  // The recursively updated residual can fall below the tolerance after the true one has
+  // stopped falling: check the true one, with a margin for that drift.
+  const Matrix true_residual = project_rows(mode, AX - f);
+  for (int k = 0; k < true_residual.cols(); ++k)
+    if (true_residual.col(k).norm() > 1e2 * options_.tolerance * (R.col(k).norm() + mode.norm * X.col(k).norm())) {
+      if (error) *error = "deflated CG's true residual stayed above its tolerance";
+      return false;
+    }
+  return true;
 }
 
-std::unique_ptr<SharedShiftSolver> shared_shift_solver(FullSpaceProblem& problem, const double* x,
-                                                       std::string* error) {
+bool update_shared_shift_solver(FullSpaceProblem& problem, const double* x, SharedShiftSolver* solver,
+                                std::string* error) {
   const Matrix& basis = problem.deflation_basis();
   if (basis.cols() == 0 || basis.rows() != problem.num_dofs() || !x) {
-    if (error) *error = "no deflation basis or no point (no forward solve given to the problem)";
-    return nullptr;
+    if (error) *error = "no deflation basis (no forward solve given to the problem) or no point";
+    return false;
   }
+  const Eigen::Map<const Vector> point(x, problem.num_variables());
+  if (solver->point_.size() == point.size() && solver->point_ == point &&
+      solver->basis_version_ == problem.deflation_basis_version())
+    return true;  // the same B_i (Ipopt's inertia corrections change only the Hessian)
+  solver->point_.resize(0);
   double lowest = INFINITY;
   for (int i = 0; i < problem.num_modes(); ++i) lowest = std::min(lowest, problem.reference_eigenvalue(i));
-  auto solver = std::make_unique<SharedShiftSolver>();
   const SparseMatrix& M = problem.mass_matrix(x);
-  if (!solver->factor(problem.stiffness_matrix(x), M, -0.1 * lowest, basis, error)) return nullptr;
+  if (!solver->factor(problem.stiffness_matrix(x), M, -0.1 * lowest, basis, error)) return false;
   for (int i = 0; i < problem.num_modes(); ++i)
     solver->set_mode(i, problem.mode_vector(x, i), problem.reference_eigenvalue(i), problem.eigenvalue_ratio(x, i));
-  return solver;
+  solver->point_ = point;
+  solver->basis_version_ = problem.deflation_basis_version();
+  return true;
 }
 
 }  // namespace modalcal::detail

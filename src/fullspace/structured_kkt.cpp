@@ -94,7 +94,10 @@ class KktInstance {
       });
       return product;
     };
-    elimination_->solve(&f, &e, &fq, [this](Matrix* h) { *h = reduced_inverse_ * (*h); }, hessian_product);
+    auto bordered_block = [&](int i) { return mode_blocks(p, i, a, ia, ja, Matrix::Zero(nd + 1, np)).bordered; };
+    elimination_->solve(&f, &e, &fq, [this](Matrix* h) { *h = reduced_inverse_ * (*h); }, hessian_product,
+                        bordered_block);
+    report_shared_counts();
     for (int i = 0; i < l; ++i)
       for (int k = 0; k <= nd; ++k) {
         rhs.row(p.mode_entry(i, k)) = f[i].row(k);
@@ -117,6 +120,7 @@ class KktInstance {
         if (place.kind == Place::MultiplierDiagonal) multiplier_diagonal_.push_back(k);
       }
     elimination_ = std::make_unique<BlockElimination>(p.num_modes(), p.num_parameters(), /*keep_factors=*/true);
+    reported_shared_ = reported_failures_ = 0;
     return true;
   }
 
@@ -224,21 +228,24 @@ class KktInstance {
     });
     // Ipopt's matrix is linearized where it last evaluated the Jacobian; add_mode() checks that
     // the shared solver's B_i agree with the matrix's.
-    shared_.reset();
-    if (registration_.shared_factorization)
-      shared_ = shared_shift_solver(*registration_.problem, registration_.problem->jacobian_point().data(), nullptr);
-    const int shared_before = elimination_->shared_eliminations(), failed_before = elimination_->shared_failures();
-    elimination_->begin(parameter_hessian, nullptr, shared_.get());
+    SharedShiftSolver* shared = nullptr;
+    if (registration_.shared_factorization) {
+      if (!shared_) shared_ = std::make_unique<SharedShiftSolver>();
+      const Vector& point = registration_.problem->jacobian_point();
+      if (update_shared_shift_solver(*registration_.problem, point.size() ? point.data() : nullptr, shared_.get(),
+                                     nullptr))
+        shared = shared_.get();
+      else
+        elimination_->count_shared_failures(l);  // every mode factored
+    }
+    elimination_->begin(parameter_hessian, nullptr, shared);
     for (int i = 0; i < l; ++i) {
       std::string why;
-      if (!elimination_->add_mode(i, mode_blocks(p, i, a, ia, ja, std::move(jacobian_parameters[i])), nullptr, nullptr,
-                                  &why))
-        return kSingular;
+      const bool added = elimination_->add_mode(i, mode_blocks(p, i, a, ia, ja, std::move(jacobian_parameters[i])),
+                                                nullptr, nullptr, &why);
+      report_shared_counts();
+      if (!added) return kSingular;
       elimination_->release_hessian(i);  // the solves read W_i from Ipopt's values
-    }
-    if (registration_.counts) {
-      registration_.counts->shared_modes += elimination_->shared_eliminations() - shared_before;
-      registration_.counts->shared_failures += elimination_->shared_failures() - failed_before;
     }
     // Inertia from H's eigenvalues; a numerically zero one counts as negative, so that Ipopt
     // raises delta_w (which makes H definite) rather than delta_c (which would leave the layout).
@@ -254,6 +261,15 @@ class KktInstance {
     reduced_inverse_ = eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
     *negatives = p.num_constraints() + negative;
     return 0;
+  }
+
+  // The shared solver's eliminations and failures since the last report, into the counts.
+  void report_shared_counts() {
+    if (!registration_.counts) return;
+    registration_.counts->shared_modes += elimination_->shared_eliminations() - reported_shared_;
+    registration_.counts->shared_failures += elimination_->shared_failures() - reported_failures_;
+    reported_shared_ = elimination_->shared_eliminations();
+    reported_failures_ = elimination_->shared_failures();
   }
 
   int factor_whole(const double* a, const int* ia, const int* ja, int* negatives) {
@@ -279,6 +295,7 @@ class KktInstance {
   std::vector<int> multiplier_diagonal_;  // positions of the (y, y) diagonal: -delta_c
   std::unique_ptr<BlockElimination> elimination_;
   std::unique_ptr<SharedShiftSolver> shared_;  // with Registration::shared_factorization
+  int reported_shared_ = 0, reported_failures_ = 0;
   Matrix reduced_inverse_;
   std::unique_ptr<MumpsSymmetricFactor> whole_;
 };
