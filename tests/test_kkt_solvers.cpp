@@ -169,6 +169,19 @@ double BackwardError(const SparseMatrix& kkt, const Vector& solution, const Vect
          (row_sums.maxCoeff() * solution.cwiseAbs().maxCoeff() + rhs.cwiseAbs().maxCoeff());
 }
 
+// The block solver's Newton step (dq from its reduced system) in the whole KKT system
+// [W A^T; A 0] (dx, dy) = -(grad L, c) at the point.
+double StepBackwardError(PerturbedPoint& point, const detail::BlockKktSystem& kkt) {
+  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
+  Vector dx, dy;
+  kkt.step(dq, &dx, &dy);
+  const SparseMatrix K = point.Kkt(0, Vector::Zero(point.fp.num_parameters()));
+  Vector rhs(K.rows()), step(K.rows());
+  rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
+  step << dx, dy;
+  return BackwardError(K, step, rhs);
+}
+
 TEST(BlockKkt, StepSolvesTheWholeKktSystemAndCountsEachModesIndex) {
   // For every parameter kind, the step assembled from the per-mode eliminations and the Schur
   // complement must satisfy the whole KKT system [W A^T; A 0] (dx, dy) = -(grad L, c).
@@ -177,15 +190,8 @@ TEST(BlockKkt, StepSolvesTheWholeKktSystemAndCountsEachModesIndex) {
   detail::BlockKktSystem kkt(fp);
   std::string error;
   ASSERT_TRUE(kkt.build(point.x, point.y, &error)) << error;
-  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
-  Vector dx, dy;
-  kkt.step(dq, &dx, &dy);
-  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
-  Vector rhs(K.rows()), step(K.rows());
-  rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
-  step << dx, dy;
   ASSERT_GT(kkt.constraints().cwiseAbs().maxCoeff(), 1e-6);  // the point is really infeasible
-  EXPECT_LT(BackwardError(K, step, rhs), 1e-12);
+  EXPECT_LT(StepBackwardError(point, kkt), 1e-12);
   // Sylvester: B_i has one negative pivot per eigenvalue below lambda_i, plus one of the border.
   for (int i = 0; i < fp.num_modes(); ++i) EXPECT_EQ(kkt.mode_index(i), point.model_mode[i] + 1) << "mode " << i + 1;
 }
@@ -202,15 +208,8 @@ TEST(BlockKkt, OneSharedFactorizationGivesTheStepAndIndexOfOneFactorizationPerMo
   ASSERT_TRUE(per_mode.build(point.x, point.y, &error)) << error;
   EXPECT_EQ(shared.shared_eliminations(), fp.num_modes());
   EXPECT_EQ(shared.shared_failures(), 0);
-  const Vector dq = shared.reduced_hessian().fullPivLu().solve(shared.reduced_rhs());
-  Vector dx, dy;
-  shared.step(dq, &dx, &dy);
-  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
-  Vector rhs(K.rows()), step(K.rows());
-  rhs << -shared.lagrangian_gradient(), -shared.constraints();
-  step << dx, dy;
   // CG stops at a backward error of 1e-13 per bordered solve; the whole step keeps it to 1e-11.
-  EXPECT_LT(BackwardError(K, step, rhs), 1e-11);
+  EXPECT_LT(StepBackwardError(point, shared), 1e-11);
   const double scale = per_mode.reduced_hessian().cwiseAbs().maxCoeff();
   EXPECT_LT((shared.reduced_hessian() - per_mode.reduced_hessian()).cwiseAbs().maxCoeff(), 1e-9 * scale);
   for (int i = 0; i < fp.num_modes(); ++i) EXPECT_EQ(shared.mode_index(i), per_mode.mode_index(i)) << "mode " << i + 1;
@@ -228,17 +227,10 @@ TEST(BlockKkt, ABasisWithoutTheLowerModesFallsBackToFactoringTheirBlocks) {
   ASSERT_TRUE(kkt.build(point.x, point.y, &error)) << error;
   EXPECT_GT(kkt.shared_failures(), 0);
   EXPECT_EQ(kkt.shared_eliminations() + kkt.shared_failures(), fp.num_modes());
-  const Vector dq = kkt.reduced_hessian().fullPivLu().solve(kkt.reduced_rhs());
-  Vector dx, dy;
-  kkt.step(dq, &dx, &dy);
-  const SparseMatrix K = point.Kkt(0, Vector::Zero(fp.num_parameters()));
-  Vector rhs(K.rows()), step(K.rows());
-  rhs << -kkt.lagrangian_gradient(), -kkt.constraints();
-  step << dx, dy;
-  EXPECT_LT(BackwardError(K, step, rhs), 1e-11);
+  EXPECT_LT(StepBackwardError(point, kkt), 1e-11);
 }
 
-// Mode i's blocks at the point, with made-up W_i (M), C_i and P_i: what BlockElimination needs.
+// Mode i's blocks at the point, with made-up W_i (1e-3 A_i), C_i and P_i: what BlockElimination needs.
 detail::ModeKktBlocks MadeUpBlocks(detail::FullSpaceProblem& fp, const Vector& x, int i) {
   const SparseMatrix& K = fp.stiffness_matrix(x.data());
   const SparseMatrix& M = fp.mass_matrix(x.data());
