@@ -116,18 +116,39 @@ long max_rss_kb() {
 // FullSpace: Ipopt on the structured KKT solver (the default); FullSpaceMumps: Ipopt with MUMPS
 // on the whole KKT matrix; FullSpaceBlock: the block SQP.
 // FullSpace and FullSpaceBlock use the default bordered solves (FullSpaceOptions::BorderedSolves::
-// Automatic: shared from its DOF threshold on); the *PerMode ones force one factorization per mode.
-enum class Method { Reduced, FullSpace, FullSpaceMumps, FullSpaceBlock, FullSpacePerMode, FullSpaceBlockPerMode };
+// Automatic: shared from its DOF threshold on); *PerMode and *Shared force one factorization per
+// mode or one shared by all modes.
+enum class Method {
+  Reduced, FullSpace, FullSpaceMumps, FullSpaceBlock,
+  FullSpacePerMode, FullSpaceBlockPerMode, FullSpaceShared, FullSpaceBlockShared
+};
+struct MethodInfo {
+  Method method;
+  const char* token;  // in --methods
+  const char* name;   // in the table and the JSON
+};
+constexpr MethodInfo kMethods[] = {
+    {Method::Reduced, "reduced", "reduced L-BFGS"},
+    {Method::FullSpace, "fullspace", "full (Ipopt, structured)"},
+    {Method::FullSpaceMumps, "mumps", "full (Ipopt, MUMPS)"},
+    {Method::FullSpaceBlock, "block", "full (block SQP)"},
+    {Method::FullSpacePerMode, "fullspace-per-mode", "full (Ipopt, per-mode)"},
+    {Method::FullSpaceBlockPerMode, "block-per-mode", "full (block, per-mode)"},
+    {Method::FullSpaceShared, "fullspace-shared", "full (Ipopt, shared)"},
+    {Method::FullSpaceBlockShared, "block-shared", "full (block, shared)"},
+};
 const char* method_name(Method m) {
-  switch (m) {
-    case Method::Reduced: return "reduced L-BFGS";
-    case Method::FullSpace: return "full (Ipopt, structured)";
-    case Method::FullSpaceMumps: return "full (Ipopt, MUMPS)";
-    case Method::FullSpaceBlock: return "full (block SQP)";
-    case Method::FullSpacePerMode: return "full (Ipopt, per-mode)";
-    case Method::FullSpaceBlockPerMode: return "full (block, per-mode)";
-  }
+  for (const MethodInfo& info : kMethods)
+    if (info.method == m) return info.name;
   return "?";
+}
+bool is_block_sqp(Method m) {
+  return m == Method::FullSpaceBlock || m == Method::FullSpaceBlockPerMode || m == Method::FullSpaceBlockShared;
+}
+FullSpaceOptions::BorderedSolves bordered_solves(Method m) {
+  if (m == Method::FullSpacePerMode || m == Method::FullSpaceBlockPerMode) return FullSpaceOptions::BorderedSolves::PerMode;
+  if (m == Method::FullSpaceShared || m == Method::FullSpaceBlockShared) return FullSpaceOptions::BorderedSolves::Shared;
+  return FullSpaceOptions::BorderedSolves::Automatic;
 }
 
 struct Settings {
@@ -225,10 +246,8 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
     FullSpaceOptions o;
     o.globalization_reduction = s.globalization_reduction;
     o.print_level = s.ipopt_print_level;
-    if (method == Method::FullSpaceBlock || method == Method::FullSpaceBlockPerMode)
-      o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
-    if (method == Method::FullSpacePerMode || method == Method::FullSpaceBlockPerMode)
-      o.bordered_solves = FullSpaceOptions::BorderedSolves::PerMode;
+    if (is_block_sqp(method)) o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
+    o.bordered_solves = bordered_solves(method);
     if (method == Method::FullSpaceMumps) o.kkt_solver = FullSpaceOptions::KktSolver::Mumps;
     o.progress = [&](const KktRecord& record) {
       note(record.parameter_error);
@@ -417,8 +436,9 @@ const char* kUsage =
     "  --methods LIST              reduced,fullspace,mumps,block: reduced L-BFGS, full space with Ipopt\n"
     "                              on the structured KKT solver (the default), Ipopt with MUMPS on the\n"
     "                              whole KKT matrix, the block-elimination SQP (default all); with\n"
-    "                              -per-mode: one factorization per mode's bordered block, where the\n"
-    "                              default shares one above FullSpaceOptions::shared_factorization_min_dofs\n"
+    "                              -per-mode / -shared: one factorization per mode's bordered block, or\n"
+    "                              one shared by all modes, where the default shares from\n"
+    "                              FullSpaceOptions::shared_factorization_min_dofs DOFs on\n"
     "  --start-factor F            start at truth x F, clamped to the bounds (default 0.7)\n"
     "  --target-error E            parameter error for the time-to-accuracy column (default 1e-8)\n"
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
@@ -457,15 +477,13 @@ int run(int argc, char** argv) {
     else if (a == "--methods") {
       methods.clear();
       for (const std::string& m : split_list(next())) {
-        if (m == "reduced") methods.push_back(Method::Reduced);
-        else if (m == "fullspace") methods.push_back(Method::FullSpace);
-        else if (m == "mumps") methods.push_back(Method::FullSpaceMumps);
-        else if (m == "block") methods.push_back(Method::FullSpaceBlock);
-        else if (m == "fullspace-per-mode") methods.push_back(Method::FullSpacePerMode);
-        else if (m == "block-per-mode") methods.push_back(Method::FullSpaceBlockPerMode);
-        else
+        const auto info = std::find_if(std::begin(kMethods), std::end(kMethods),
+                                       [&](const MethodInfo& known) { return m == known.token; });
+        if (info == std::end(kMethods))
           throw std::invalid_argument("unknown method '" + m +
-                                      "' (reduced, fullspace, mumps, block, fullspace-per-mode, block-per-mode)");
+                                      "' (reduced, fullspace, mumps, block, fullspace-per-mode, block-per-mode, "
+                                      "fullspace-shared, block-shared)");
+        methods.push_back(info->method);
       }
     } else if (a == "--start-factor") s.start_factor = number();
     else if (a == "--target-error") s.target_error = number();
