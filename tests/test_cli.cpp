@@ -172,6 +172,21 @@ std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
   return rows;
 }
 
+TEST(Cli, BorderedSolvesThroughOneSharedFactorizationAreChosenAndReported) {
+  const std::string json_path = WriteTempFile("shared.json", "");
+  const std::string problem = testing::SourcePath("problems/portal-frame/synthetic.yaml");
+  const CliRun run = RunCli("calibrate " + problem + " --bordered-solves shared --quiet --json " + json_path);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(json_path));
+  EXPECT_TRUE(j["converged"].get<bool>());
+  EXPECT_EQ(j["bordered_solves"]["method"], "shared");
+  EXPECT_GT(j["bordered_solves"]["shared_eliminations"].get<int>(), 0);
+  EXPECT_EQ(j["bordered_solves"]["shared_failures"], 0);
+  const CliRun bad = RunCli("calibrate " + problem + " --bordered-solves sometimes --quiet");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--bordered-solves"), std::string::npos) << bad.output;
+}
+
 TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
   const std::string json_path = WriteTempFile("report.json", "");
   const std::string dir = std::filesystem::path(json_path).parent_path().string();
@@ -189,6 +204,8 @@ TEST(Cli, FullSpaceCalibrationWritesTheDocumentedJson) {
       << j["ipopt_status"];
   EXPECT_EQ(j["kkt_solver"], "structured");  // the default: Ipopt on the structured KKT solver
   EXPECT_GT(j["kkt_factorizations"]["structured"].get<int>(), 0);
+  EXPECT_EQ(j["bordered_solves"]["method"], "per-mode");  // a small model: one factorization per mode
+  EXPECT_EQ(j["bordered_solves"]["shared_eliminations"], 0);
   EXPECT_TRUE(j["mode_check"]["passed"].get<bool>()) << j["mode_check"].dump();
   for (const auto& mac : j["mode_check"]["mac"]) EXPECT_GT(mac.get<double>(), 0.99);
   ASSERT_FALSE(j["kkt_history"].empty());

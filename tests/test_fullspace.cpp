@@ -290,6 +290,10 @@ TEST(FullSpace, OptionsAreValidatedNamingTheField) {
   no_escapes.max_crossing_escapes = -1;
   EXPECT_FALSE(no_escapes.IsValid(&error));
   EXPECT_NE(error.find("max_crossing_escapes = -1"), std::string::npos) << error;
+  FullSpaceOptions negative_threshold;
+  negative_threshold.shared_factorization_min_dofs = -1;
+  EXPECT_FALSE(negative_threshold.IsValid(&error));
+  EXPECT_NE(error.find("shared_factorization_min_dofs = -1"), std::string::npos) << error;
   FullSpaceOptions limited_block;
   limited_block.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
   limited_block.hessian = FullSpaceOptions::Hessian::LimitedMemory;
