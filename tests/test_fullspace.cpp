@@ -579,7 +579,7 @@ TEST(FullSpace, IpoptTakesTheSameIteratesWithTheStructuredKktSolverAsWithMumps) 
 
 TEST(FullSpace, OneSharedFactorizationTakesTheIteratesOfOneFactorizationPerMode) {
   // Sharing one factorization of K - sigma M among the modes changes how each bordered block is
-  // solved (deflated CG to a backward error of 1e-13), not the step: the same iterates, for Ipopt
+  // solved (deflated CG to a backward error of 1e-15), not the step: the same iterates, for Ipopt
   // and for the block solver, while the infeasibilities are above their rounding floor.
   const Problem problem = Identifiable();
   const Vector start = problem.initial_values() * 2.0;
