@@ -82,7 +82,8 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   ///    saddle blocks: docs/benchmarks.md).
   ///  - `BlockElimination`: an SQP iteration on the same problem and derivatives whose KKT
   ///    systems are solved per mode: one sparse LDL^T of the bordered
-  ///    \f$[[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ (order n + 1) per mode and an m x m
+  ///    \f$[[K - \lambda_i M, -M u_i], [-(M u_i)^T, 0]]\f$ (order n + 1) per mode (or one shared
+  ///    factorization for all modes, see `bordered_solves`) and an m x m
   ///    Schur complement on the parameters (the reduced Hessian, whose eigenvalues are the inertia
   ///    test). Bounds on p by an active-set QP in a trust box, steps by Ipopt's filter line search
   ///    (src/fullspace/block_newton.hpp).

@@ -5,8 +5,9 @@
 // (upper triangle, 1-based CSR, unknowns [x | y_c]: our problem has no inequality constraints,
 // only bounds on q). Where the matrix has the layout of the registered FullSpaceProblem, it is
 // solved by per-mode block elimination (block_elimination.hpp): one factorization of each
-// mode's bordered block, an m x m reduced Hessian on q whose eigenvalues give the inertia of the
-// whole matrix (negatives = rows of J + negatives of H). Elsewhere - another layout (Ipopt's
+// mode's bordered block (or, with shared_factorization, one factorization of K - sigma M for all
+// modes: shared_shift_solve.hpp), an m x m reduced Hessian on q whose eigenvalues give the inertia
+// of the whole matrix (negatives = rows of J + negatives of H). Elsewhere - another layout (Ipopt's
 // restoration phase, a fixed parameter), delta_c > 0 (Ipopt's answer to a singular matrix), no
 // registered problem - MUMPS factors the whole matrix, as Ipopt's own MUMPS path would.
 
