@@ -69,11 +69,7 @@ bool BlockElimination::add_mode(int i, ModeKktBlocks blocks, const Vector* f, co
     mode.factor.reset();
   } else {
     if (mode.shared) ++shared_failures_;
-    mode.shared = false;
-    if (keep_factors_ && !mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
-    MumpsSymmetricFactor& factor = keep_factors_ ? *mode.factor : *one_factor_;
-    if (!factor.factor(blocks.bordered, error)) return false;
-    negative_pivots_[i] = factor.negative_pivots();
+    if (!factor_bordered(i, blocks.bordered, error)) return false;
     fill();
     eliminate(blocks, bordered_solve(i), &right, &left, {}, &reduction);
   }
@@ -117,7 +113,7 @@ void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Mat
       // The shared solves fell short on these right-hand sides: factor B_i after all.
       ++shared_failures_;
       std::string why;
-      if (!bordered_block || !refactor(mode, bordered_block(mode), &why))
+      if (!bordered_block || !factor_bordered(mode, bordered_block(mode), &why))
         throw std::runtime_error("full-space mode " + std::to_string(mode + 1) + ": " + why);
       (*e)[i] = e_given;
       (*f)[i] = f_given;
@@ -135,12 +131,13 @@ void BlockElimination::solve(std::vector<Matrix>* f, std::vector<Matrix>* e, Mat
   }
 }
 
-bool BlockElimination::refactor(int i, const SparseMatrix& bordered, std::string* error) {
+bool BlockElimination::factor_bordered(int i, const SparseMatrix& bordered, std::string* error) {
   Mode& mode = modes_[i];
   mode.shared = false;
-  if (!mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
-  if (!mode.factor->factor(bordered, error)) return false;
-  negative_pivots_[i] = mode.factor->negative_pivots();
+  if (keep_factors_ && !mode.factor) mode.factor = std::make_unique<MumpsSymmetricFactor>();
+  MumpsSymmetricFactor& factor = keep_factors_ ? *mode.factor : *one_factor_;
+  if (!factor.factor(bordered, error)) return false;
+  negative_pivots_[i] = factor.negative_pivots();
   return true;
 }
 

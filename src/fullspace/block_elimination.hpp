@@ -121,7 +121,9 @@ class BlockElimination {
   static bool eliminate(const ModeKktBlocks& blocks, const BorderedSolve& solve_bordered, Matrix* right, Matrix* left,
                         const std::function<Matrix(const Matrix&)>& hessian_product, Matrix* reduction);
   BorderedSolve bordered_solve(int i);
-  bool refactor(int i, const SparseMatrix& bordered, std::string* error);  // kept factor of B_i
+  // Factors B_i (into the mode's kept factor, or the one reused mode after mode); the mode is no
+  // longer shared.
+  bool factor_bordered(int i, const SparseMatrix& bordered, std::string* error);
   int np_;
   bool keep_factors_;
   std::vector<Mode> modes_;
