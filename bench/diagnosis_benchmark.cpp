@@ -880,6 +880,7 @@ struct Args {
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
   double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
+  int jobs = 1;             // refits at a time in threads (run_in_threads), as `diagnose --jobs`
   std::string command;
 };
 
@@ -889,10 +890,12 @@ void usage() {
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--no-kind-prior] [--print-diagnosis]\n"
-      "                    [--stop-when-consistent]\n"
+      "                    [--stop-when-consistent] [--jobs N]\n"
       "  --refits, --place-refits, --no-kind-prior: RankingOptions::refits, place_refits and\n"
       "  equal_kind_prior (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
+      "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
+      "  is then one core's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
@@ -961,6 +964,7 @@ int main(int argc, char** argv) {
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
+      else if (a == "--jobs") args.jobs = std::stoi(next());
       else if (a == "--print-diagnosis") args.print_diagnosis = true;
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
@@ -1091,6 +1095,7 @@ int main(int argc, char** argv) {
           options.ranking.place_refits = args.place_refits;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
+          options.ranking.task_map = run_in_threads(args.jobs);
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();

@@ -1,13 +1,18 @@
 // Calibrations shared among the ranks of an MPI job (src/cli/work_farm.hpp): campaign, diagnose
 // and study full-vs-reduced under `mpirun --oversubscribe -np 3` give what the same command gives
-// alone, and the text encoding that carries results between ranks (TaskCodec) is exact.
+// alone, and the text encoding that carries results between ranks (TaskCodec) is exact. The
+// diagnosis's refits in threads of one process give the serial diagnosis too.
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <thread>
 
 #include "modalcal/task_map.hpp"
 #include "test_util.hpp"
@@ -81,6 +86,39 @@ TEST(TaskCodec, CarriesNumbersTextsAndVectorsExactly) {
 TEST(TaskMap, RunInTurnKeepsTheOrder) {
   const std::vector<std::string> r = run_in_turn(4, [](size_t i) { return std::to_string(i * i); });
   EXPECT_EQ(r, (std::vector<std::string>{"0", "1", "4", "9"}));
+}
+
+// Pieces of different lengths on more threads than pieces: every result in its index's place, and
+// a failure rethrown only once every piece has run, the lowest index's when several fail.
+TEST(TaskMap, RunInThreadsKeepsTheOrderAndRethrowsTheLowestFailure) {
+  const TaskMap map = run_in_threads(3);
+  std::vector<std::string> expected;
+  for (size_t i = 0; i < 7; ++i) expected.push_back(std::to_string(i * i));
+  const auto slow_first = [](size_t i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(i == 0 ? 50 : 1));
+    return std::to_string(i * i);
+  };
+  EXPECT_EQ(map(7, slow_first), expected);
+  EXPECT_TRUE(map(0, slow_first).empty());
+  EXPECT_EQ(run_in_threads(1)(3, slow_first), (std::vector<std::string>{"0", "1", "4"}));
+
+  std::atomic<int> ran{0};
+  try {
+    map(6, [&](size_t i) -> std::string {
+      ++ran;
+      if (i == 4) throw std::runtime_error("piece 4");
+      if (i == 2) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(30));  // fails after piece 4 has
+        throw std::invalid_argument("piece 2");
+      }
+      return "";
+    });
+    ADD_FAILURE() << "no failure rethrown";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "piece 2");
+  }
+  EXPECT_EQ(ran.load(), 6);
+  EXPECT_THROW(run_in_threads(0), std::invalid_argument);
 }
 
 // Six noisy tests of one bar, one 20 % denser, one data file that does not parse: across three
@@ -159,6 +197,34 @@ TEST(Mpi, DiagnosisAcrossRanksEqualsTheSerialDiagnosis) {
   const nlohmann::json b = nlohmann::json::parse(ReadFile(dir + "/mpi.json"));
   EXPECT_EQ(b["accepted"], nlohmann::json::array({"added_mass_tip.mass"})) << b["accepted"].dump();
   ExpectAlike(a, b, 1e-6, "diagnosis");
+}
+
+// The refits in threads of one process (diagnose's default on a machine with several cores): the
+// same diagnosis as one refit after another.
+TEST(Threads, DiagnosisWithItsRefitsInThreadsEqualsTheSerialDiagnosis) {
+  OneBlasThread();
+  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  ASSERT_EQ(RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 --noise-freq 0.002 " +
+                   "--noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml")
+                .exit_code,
+            0);
+  const std::string study = WriteTempFile("study.yaml", kSensedBar + "measured: {file: data.yaml}\n");
+  CliRun serial = RunCli("diagnose " + study + " --jobs 1 --json " + dir + "/serial.json");
+  ASSERT_EQ(serial.exit_code, 0) << serial.output;
+  EXPECT_NE(serial.output.find("  refit "), std::string::npos) << serial.output;  // one refit's lines at a time
+  CliRun threaded = RunCli("diagnose " + study + " --jobs 3 --json " + dir + "/threaded.json");
+  ASSERT_EQ(threaded.exit_code, 0) << threaded.output;
+  EXPECT_NE(threaded.output.find("the refits up to 3 at a time, in threads"), std::string::npos) << threaded.output;
+  EXPECT_EQ(threaded.output.find("  refit "), std::string::npos) << threaded.output;  // no mixed lines
+  const nlohmann::json a = nlohmann::json::parse(ReadFile(dir + "/serial.json"));
+  const nlohmann::json b = nlohmann::json::parse(ReadFile(dir + "/threaded.json"));
+  EXPECT_EQ(b["accepted"], nlohmann::json::array({"added_mass_tip.mass"})) << b["accepted"].dump();
+  ExpectAlike(a, b, 1e-6, "diagnosis");
+
+  CliRun bad = RunCli("diagnose " + study + " --jobs 0");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("--jobs"), std::string::npos) << bad.output;
 }
 
 // The studies' runs handed out to the ranks: full-vs-reduced's child processes (the same

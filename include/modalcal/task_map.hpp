@@ -1,7 +1,7 @@
 #pragma once
 /// \file task_map.hpp
-/// How a stage runs independent pieces of work (the diagnosis's refits): in turn here, or spread
-/// over the processes of an MPI job by the command-line tool.
+/// How a stage runs independent pieces of work (the diagnosis's refits): in turn, in threads of
+/// this process, or spread over the processes of an MPI job by the command-line tool.
 
 #include <cstddef>
 #include <functional>
@@ -28,6 +28,21 @@ using TaskMap = std::function<std::vector<std::string>(size_t n, const std::func
 
 /// The default TaskMap: each piece of work in index order, in this process.
 MODALCAL_EXPORT std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(size_t)>& work);
+
+/// A TaskMap that runs up to `threads` pieces at a time, each in a thread of this process, the
+/// next free thread taking the next index. The results are in index order, as run_in_turn()'s, so
+/// that what a caller computes from them does not depend on the number of threads. Every piece
+/// runs even when one fails; then the failure of the lowest index is rethrown. `work` must be
+/// safe to call concurrently: the diagnosis's refits are (each builds its own model, objective
+/// and factorizations). With threads = 1, or a single piece, it is run_in_turn(). When the
+/// system cannot start another thread, the pieces go to the threads already running.
+///
+/// Example: \code
+///   const TaskMap map = run_in_threads(4);
+///   auto squares = map(8, [](size_t i) { return std::to_string(i * i); });  // {"0","1",..,"49"}
+/// \endcode
+/// \throws std::invalid_argument when threads < 1.
+MODALCAL_EXPORT TaskMap run_in_threads(int threads);
 
 /// Numbers written to and read from a task's result text exactly (17 significant digits, NaN and
 /// infinities included), in the order they were written.

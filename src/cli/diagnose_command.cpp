@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iostream>
 #include <optional>
+#include <thread>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -37,9 +38,16 @@ struct DiagnoseArgs {
   bool no_exchange = false;
   std::vector<std::string> add;
   double region_size = CandidateOptions().region_elements;
+  int jobs = 0;  // refits at a time in threads; 0: one per core
   std::string json, vtu, plot, map, write_problem;
   bool quiet = false;
 };
+
+/// How many refits run at a time in this process: --jobs, or one per core.
+int refit_threads(const DiagnoseArgs& args) {
+  if (args.jobs > 0) return args.jobs;
+  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
 
 /// The screen map's arrays for the VTU file (ScreenMap, effects.hpp).
 void add_screen_map_fields(const ScreenMap& map, VtuFields* fields) {
@@ -385,14 +393,16 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.candidates.region_elements = args.region_size;
   options.backward = !args.no_backward;
   options.exchange = !args.no_exchange;
-  options.ranking.task_map = farm.task_map();
+  const int threads = refit_threads(args);
+  options.ranking.task_map = farm.task_map(threads);
   if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
     };
-    options.ranking.refit.progress = [](const IterationRecord& r) {
-      std::fprintf(stderr, "  refit %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
-    };
+    if (threads == 1 || farm.size() > 1)  // refits running side by side would mix their lines
+      options.ranking.refit.progress = [](const IterationRecord& r) {
+        std::fprintf(stderr, "  refit %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
+      };
   }
   std::string error;
   if (!options.IsValid(&error)) throw InputError(error);
@@ -478,7 +488,10 @@ int run_diagnose(const DiagnoseArgs& args) {
   }
   const std::optional<Problem> finer = finer_mesh_problem(args, problem);
   if (finer) options.finer_mesh = &*finer;
-  if (farm.size() > 1) std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
+  if (farm.size() > 1)
+    std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
+  else if (refit_threads(args) > 1)
+    std::printf("the refits up to %d at a time, in threads\n", refit_threads(args));
   const Diagnosis d = diagnose(problem, start, options);
   if (farm.is_root()) report_diagnosis(args, problem, d);  // rank 0 reports
   return 0;
@@ -539,6 +552,10 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "size of the block regions screened, in element sizes (default 3)")
       ->check(finite_number())
       ->check(CLI::Range(1.0, 1000.0));
+  cmd->add_option("--jobs", args->jobs,
+                  "refits run at a time, each in a thread (default: one per core; 1: one after another). The "
+                  "results do not depend on it. In an MPI job the ranks share the refits instead")
+      ->check(CLI::Range(1, 1024));
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->callback([args, exit_code] { *exit_code = run_diagnose(*args); });
 }

@@ -60,6 +60,30 @@ void one_blas_thread() {
   if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
 }
 
+/// While it lives (and `active`), OpenBLAS runs each call in the calling thread; afterwards its
+/// earlier thread count is back. Set and restored around a threaded map, when no BLAS call runs.
+class OneBlasThreadWhile {
+ public:
+  explicit OneBlasThreadWhile(bool active) {
+    using GetThreads = int (*)();
+    const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+    set_ = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+    if (!active || !get || !set_) return;
+    before_ = get();
+    if (before_ > 1) set_(1);
+  }
+  ~OneBlasThreadWhile() {
+    if (before_ > 1) set_(before_);
+  }
+  OneBlasThreadWhile(const OneBlasThreadWhile&) = delete;
+  OneBlasThreadWhile& operator=(const OneBlasThreadWhile&) = delete;
+
+ private:
+  using SetThreads = void (*)(int);
+  SetThreads set_ = nullptr;
+  int before_ = 0;
+};
+
 #ifdef MODALCAL_HAVE_MPI
 
 /// True when an MPI launcher (Open MPI's, or a PMI/PMIx one such as MPICH's or Slurm's) started
@@ -240,8 +264,13 @@ std::vector<std::string> WorkFarm::map(size_t n, const std::function<std::string
 #endif
 }
 
-TaskMap WorkFarm::task_map() {
-  return [this](size_t n, const std::function<std::string(size_t)>& work) { return map(n, work); };
+TaskMap WorkFarm::task_map(int threads) {
+  if (size_ > 1 || threads <= 1)
+    return [this](size_t n, const std::function<std::string(size_t)>& work) { return map(n, work); };
+  return [threaded = run_in_threads(threads)](size_t n, const std::function<std::string(size_t)>& work) {
+    const OneBlasThreadWhile one(n > 1);
+    return threaded(n, work);
+  };
 }
 
 }  // namespace modalcal::cli

@@ -37,8 +37,10 @@ class WorkFarm {
   std::vector<std::string> map(size_t n, const std::function<std::string(size_t)>& work,
                                const std::function<void(size_t, const std::string&)>& on_result = {});
 
-  /// map() as a TaskMap for the library (the diagnosis's refits).
-  TaskMap task_map();
+  /// map() as a TaskMap for the library (the diagnosis's refits). A process alone runs up to
+  /// `threads` pieces at a time in threads (run_in_threads), with one BLAS thread each while they
+  /// run, so that the pieces, not BLAS, share the cores; the ranks of an MPI job run one each.
+  TaskMap task_map(int threads = 1);
 
  private:
   WorkFarm(int rank, int size) : rank_(rank), size_(size) {}

@@ -2,9 +2,14 @@
 
 #include "modalcal/task_map.hpp"
 
+#include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <stdexcept>
+#include <system_error>
+#include <thread>
 
 namespace modalcal {
 
@@ -13,6 +18,37 @@ std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(s
   results.reserve(n);
   for (size_t i = 0; i < n; ++i) results.push_back(work(i));
   return results;
+}
+
+TaskMap run_in_threads(int threads) {
+  if (threads < 1) throw std::invalid_argument("run_in_threads: threads = " + std::to_string(threads) + ": must be >= 1");
+  return [threads](size_t n, const std::function<std::string(size_t)>& work) {
+    const size_t workers = std::min(static_cast<size_t>(threads), n);
+    if (workers <= 1) return run_in_turn(n, work);
+    std::vector<std::string> results(n);
+    std::vector<std::exception_ptr> failures(n);
+    std::atomic<size_t> next{0};
+    auto take_work = [&] {
+      for (size_t i = next++; i < n; i = next++) {
+        try {
+          results[i] = work(i);
+        } catch (...) {
+          failures[i] = std::current_exception();
+        }
+      }
+    };
+    std::vector<std::thread> helpers;
+    helpers.reserve(workers - 1);
+    try {
+      while (helpers.size() + 1 < workers) helpers.emplace_back(take_work);
+    } catch (const std::system_error&) {  // no more threads: those running share the work
+    }
+    take_work();
+    for (std::thread& t : helpers) t.join();
+    for (const std::exception_ptr& failure : failures)
+      if (failure) std::rethrow_exception(failure);
+    return results;
+  };
 }
 
 // Each value is a line: "n <%.17g>" for a number (strtod reads nan and inf back), "t <length>"
