@@ -457,6 +457,24 @@ TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   EXPECT_NEAR(fit.value, 1.1, 0.05);
 }
 
+TEST(EffectRanking, ASupportSofterThanItsRangeIsAcceptableOnItsSoftestBound) {
+  // The root's clamp in z five times softer than the candidate's softest spring: the refit stops
+  // on that bound, which is the support released in z, a physical answer, not a stand-in.
+  const Problem nominal = LoadAssembly();
+  const EffectCandidate kz = make_candidate(nominal, "support@root:kz");
+  ASSERT_EQ(kz.variable, EffectCandidate::Variable::Compliance);
+  const std::string truth = "support@root:kz=" + std::to_string(kz.lower / 5);
+  const Problem problem = noise_weighted(WithHiddenEffect({truth}, 5), MeasurementNoise{0.002, 0.02, 5});
+  const EffectRanking ranking = rank_effects(problem, problem.truth_values(), {make_candidate(problem, "support@root:kz")});
+  ASSERT_EQ(ranking.effects.size(), 1u);
+  const RankedEffect& refit = ranking.effects.front();
+  ASSERT_TRUE(refit.refitted);
+  EXPECT_TRUE(refit.significant) << refit.summary();
+  EXPECT_NEAR(refit.value / kz.lower, 1, 1e-3) << refit.summary();
+  EXPECT_FALSE(refit.at_bound);
+  EXPECT_TRUE(refit.acceptable());
+}
+
 TEST(Diagnosis, AnEffectOnItsBoundIsNotAddedButTheVerdictStillSaysModelFormError) {
   // Only the blocks' candidates: the truth's pad is softer than pad.stiffness_scale's range
   // (down to a tenth) allows.

@@ -123,21 +123,29 @@ TEST(TaskMap, RunInThreadsKeepsTheOrderAndRethrowsTheLowestFailure) {
 
 // Six noisy tests of one bar, one 20 % denser, one data file that does not parse: across three
 // ranks (two at work) the campaign's runs and summary are the serial ones; its parts merged agree.
-TEST(Mpi, CampaignAcrossRanksEqualsTheSerialCampaignAndTheMergeOfItsParts) {
-  OneBlasThread();
+/// Six noisy tests of one bar in DIR/data (unit1-6.yaml), unit6 20 % denser, and unit7.yaml, which
+/// does not parse; returns the nominal problem's path.
+std::string WriteCampaignData() {
   const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
   const std::string dir = std::filesystem::path(nominal).parent_path().string();
   std::filesystem::create_directories(dir + "/data");
   const std::string synth = "synth " + nominal + " --modes 1,2,3,4 --noise-freq 0.002 --noise-shape 0.01 ";
   for (int seed = 1; seed <= 5; ++seed)
-    ASSERT_EQ(RunCli(synth + "--seed " + std::to_string(seed) + " -o " + dir + "/data/unit" + std::to_string(seed) +
+    EXPECT_EQ(RunCli(synth + "--seed " + std::to_string(seed) + " -o " + dir + "/data/unit" + std::to_string(seed) +
                      ".yaml")
                   .exit_code,
               0);
-  ASSERT_EQ(RunCli(synth + "--truth bar.density=1.2 --seed 6 -o " + dir + "/data/unit6.yaml").exit_code, 0);
+  EXPECT_EQ(RunCli(synth + "--truth bar.density=1.2 --seed 6 -o " + dir + "/data/unit6.yaml").exit_code, 0);
   WriteTempFile("data/unit7.yaml", "modes: [oops\n");
+  return nominal;
+}
 
-  CliRun serial = RunCli("campaign " + nominal + " " + dir + "/data --json " + dir + "/serial.json");
+TEST(Mpi, CampaignAcrossRanksEqualsTheSerialCampaignAndTheMergeOfItsParts) {
+  OneBlasThread();
+  const std::string nominal = WriteCampaignData();
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+
+  CliRun serial = RunCli("campaign " + nominal + " " + dir + "/data --jobs 1 --json " + dir + "/serial.json");
   ASSERT_EQ(serial.exit_code, 0) << serial.output;
   CliRun mpi = RunMpi("campaign " + nominal + " " + dir + "/data --json " + dir + "/mpi.json --plot " + dir +
                       "/mpi.png");
@@ -197,6 +205,27 @@ TEST(Mpi, DiagnosisAcrossRanksEqualsTheSerialDiagnosis) {
   const nlohmann::json b = nlohmann::json::parse(ReadFile(dir + "/mpi.json"));
   EXPECT_EQ(b["accepted"], nlohmann::json::array({"added_mass_tip.mass"})) << b["accepted"].dump();
   ExpectAlike(a, b, 1e-6, "diagnosis");
+}
+
+// The data sets calibrated in threads of one process (campaign's default on a machine with
+// several cores): the serial campaign's runs and summary, reported in the data sets' order.
+TEST(Threads, CampaignInThreadsEqualsTheSerialCampaign) {
+  OneBlasThread();
+  const std::string nominal = WriteCampaignData();
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  CliRun serial = RunCli("campaign " + nominal + " " + dir + "/data --jobs 1 --json " + dir + "/serial.json");
+  ASSERT_EQ(serial.exit_code, 0) << serial.output;
+  CliRun threaded = RunCli("campaign " + nominal + " " + dir + "/data --jobs 3 --json " + dir + "/threaded.json");
+  ASSERT_EQ(threaded.exit_code, 0) << threaded.output;
+  EXPECT_NE(threaded.output.find("7 data sets, up to 3 at a time in threads"), std::string::npos) << threaded.output;
+  size_t at = 0;
+  for (int k = 1; k <= 7; ++k) {  // each run's line, in input order
+    const size_t line = threaded.output.find("unit" + std::to_string(k) + ".yaml", at);
+    ASSERT_NE(line, std::string::npos) << "unit" << k << " out of order:\n" << threaded.output;
+    at = line;
+  }
+  ExpectAlike(nlohmann::json::parse(ReadFile(dir + "/serial.json")),
+              nlohmann::json::parse(ReadFile(dir + "/threaded.json")), 1e-6, "campaign");
 }
 
 // The refits in threads of one process (diagnose's default on a machine with several cores): the

@@ -244,8 +244,9 @@ struct MODALCAL_EXPORT RankedEffect {
   /// The refit's value ended on a bound of the candidate's range (EffectCandidate::lower,
   /// upper): the data ask for more change than this effect can make, so what it gains stands in
   /// for something else (a foam's stiffness at a tenth, a block's mass at a tenth). Listed, but
-  /// never accepted by a step nor named as an alternative. Effects added from zero (springs,
-  /// masses) are exempt: a spring at its upper bound holds its node.
+  /// never accepted by a step nor named as an alternative. Effects whose bound is a physical
+  /// limit are exempt: those added from zero (springs, masses; a spring at its upper bound holds
+  /// its node) and a support's flexibility (at its softest the support is released).
   bool at_bound = false;
   /// What a step may accept: significant, and inside its range.
   bool acceptable() const { return refitted && significant && !at_bound; }

@@ -37,6 +37,7 @@ struct CampaignArgs {
   std::string json;
   std::string plot;
   double significance = 0.01;
+  int jobs = 0;  // data sets calibrated at a time in threads; 0: one per core
 };
 
 /// The data files named: files as given, folders expanded to their .yaml files in name order.
@@ -227,6 +228,9 @@ std::vector<nlohmann::json> calibrate_all(const CampaignArgs& args, const std::v
     std::printf("%zu data sets across %d MPI ranks, rank 0 handing them out\n", files.size(), farm.size());
   const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
   fs::create_directories(folder);
+  farm.set_threads(threads_for_jobs(args.jobs));
+  if (farm.threads() > 1 && files.size() > 1)
+    std::printf("%zu data sets, up to %d at a time in threads\n", files.size(), farm.threads());
   const std::vector<std::string> results = farm.map(
       files.size(), [&](size_t k) { return calibrate_one(args, files[k], folder, static_cast<int>(k)).dump(); },
       [](size_t, const std::string& r) { print_run(nlohmann::json::parse(r)); });
@@ -329,6 +333,10 @@ void register_campaign_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--significance", args->significance,
                   "level of the test that a parameter varies between tests (default 0.01)")
       ->check(CLI::Range(1e-6, 0.5));
+  cmd->add_option("--jobs", args->jobs,
+                  "data sets calibrated at a time, each in a thread (default: one per core; 1: one after another). "
+                  "The results do not depend on it. In an MPI job the ranks share the data sets instead")
+      ->check(CLI::Range(1, 1024));
   cmd->callback([args, exit_code] { *exit_code = run_campaign(*args); });
 }
 

@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <iostream>
 #include <optional>
-#include <thread>
 
 #include "cli/cli_common.hpp"
 #include "cli/commands.hpp"
@@ -43,11 +42,6 @@ struct DiagnoseArgs {
   bool quiet = false;
 };
 
-/// How many refits run at a time in this process: --jobs, or one per core.
-int refit_threads(const DiagnoseArgs& args) {
-  if (args.jobs > 0) return args.jobs;
-  return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-}
 
 /// The screen map's arrays for the VTU file (ScreenMap, effects.hpp).
 void add_screen_map_fields(const ScreenMap& map, VtuFields* fields) {
@@ -393,13 +387,13 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.candidates.region_elements = args.region_size;
   options.backward = !args.no_backward;
   options.exchange = !args.no_exchange;
-  const int threads = refit_threads(args);
-  options.ranking.task_map = farm.task_map(threads);
+  farm.set_threads(threads_for_jobs(args.jobs));
+  options.ranking.task_map = farm.task_map();
   if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
     };
-    if (threads == 1 || farm.size() > 1)  // refits running side by side would mix their lines
+    if (farm.threads() == 1)  // refits running side by side would mix their lines
       options.ranking.refit.progress = [](const IterationRecord& r) {
         std::fprintf(stderr, "  refit %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
       };
@@ -490,8 +484,8 @@ int run_diagnose(const DiagnoseArgs& args) {
   if (finer) options.finer_mesh = &*finer;
   if (farm.size() > 1)
     std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
-  else if (refit_threads(args) > 1)
-    std::printf("the refits up to %d at a time, in threads\n", refit_threads(args));
+  else if (farm.threads() > 1)
+    std::printf("the refits up to %d at a time, in threads\n", farm.threads());
   const Diagnosis d = diagnose(problem, start, options);
   if (farm.is_root()) report_diagnosis(args, problem, d);  // rank 0 reports
   return 0;

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 
@@ -224,6 +225,10 @@ void finalize_mpi() {
 
 }  // namespace
 
+int threads_for_jobs(int jobs) {
+  return jobs > 0 ? jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
 WorkFarm& WorkFarm::join() {
   static WorkFarm farm = [] {
     int rank = 0, size = 1;
@@ -245,11 +250,23 @@ WorkFarm& WorkFarm::join() {
 
 std::vector<std::string> WorkFarm::map_alone(size_t n, const std::function<std::string(size_t)>& work,
                                              const std::function<void(size_t, const std::string&)>& on_result) {
-  std::vector<Piece> pieces;
-  for (size_t i = 0; i < n; ++i) {
-    pieces.push_back(run_one(work, i));
-    if (on_result && pieces.back().outcome == Outcome::Result) on_result(i, pieces.back().text);
-  }
+  std::vector<Piece> pieces(n);
+  std::vector<bool> done(n, false);
+  std::mutex reporting;
+  size_t reported = 0;
+  // Each piece's result in its place; on_result sees them in index order, as soon as every
+  // earlier one is in, from whichever thread completes that run.
+  auto run_and_report = [&](size_t i) {
+    Piece piece = run_one(work, i);
+    const std::lock_guard<std::mutex> lock(reporting);
+    pieces[i] = std::move(piece);
+    done[i] = true;
+    for (; reported < n && done[reported]; ++reported)
+      if (on_result && pieces[reported].outcome == Outcome::Result) on_result(reported, pieces[reported].text);
+    return std::string();
+  };
+  const OneBlasThreadWhile one(threads_ > 1 && n > 1);
+  run_in_threads(std::max(1, threads_))(n, run_and_report);
   return results_of(std::move(pieces));
 }
 
@@ -264,13 +281,8 @@ std::vector<std::string> WorkFarm::map(size_t n, const std::function<std::string
 #endif
 }
 
-TaskMap WorkFarm::task_map(int threads) {
-  if (size_ > 1 || threads <= 1)
-    return [this](size_t n, const std::function<std::string(size_t)>& work) { return map(n, work); };
-  return [threaded = run_in_threads(threads)](size_t n, const std::function<std::string(size_t)>& work) {
-    const OneBlasThreadWhile one(n > 1);
-    return threaded(n, work);
-  };
+TaskMap WorkFarm::task_map() {
+  return [this](size_t n, const std::function<std::string(size_t)>& work) { return map(n, work); };
 }
 
 }  // namespace modalcal::cli

@@ -18,6 +18,10 @@
 
 namespace modalcal::cli {
 
+/// The pieces of work to run at a time asked for by a `--jobs` option: `jobs`, or one per core
+/// when it is 0.
+int threads_for_jobs(int jobs);
+
 class WorkFarm {
  public:
   /// The farm of this process: the MPI job's when the program was started by an MPI launcher
@@ -37,16 +41,21 @@ class WorkFarm {
   std::vector<std::string> map(size_t n, const std::function<std::string(size_t)>& work,
                                const std::function<void(size_t, const std::string&)>& on_result = {});
 
-  /// map() as a TaskMap for the library (the diagnosis's refits). A process alone runs up to
-  /// `threads` pieces at a time in threads (run_in_threads), with one BLAS thread each while they
-  /// run, so that the pieces, not BLAS, share the cores; the ranks of an MPI job run one each.
-  TaskMap task_map(int threads = 1);
+  /// map() as a TaskMap for the library (the diagnosis's refits).
+  TaskMap task_map();
+
+  /// A process alone runs up to `threads` pieces of a map at a time, each in a thread
+  /// (run_in_threads), with one BLAS thread each while they run, so that the pieces, not BLAS,
+  /// share the cores. The ranks of an MPI job run one piece at a time each. Default 1.
+  void set_threads(int threads) { threads_ = threads; }
+  /// The pieces of a map that run at a time in this process (1 in an MPI job).
+  int threads() const { return size_ > 1 ? 1 : threads_; }
 
  private:
   WorkFarm(int rank, int size) : rank_(rank), size_(size) {}
   std::vector<std::string> map_alone(size_t n, const std::function<std::string(size_t)>& work,
                                      const std::function<void(size_t, const std::string&)>& on_result);
-  int rank_ = 0, size_ = 1;
+  int rank_ = 0, size_ = 1, threads_ = 1;
 };
 
 }  // namespace modalcal::cli

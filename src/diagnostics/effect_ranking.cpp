@@ -34,11 +34,14 @@ double to_variable(const EffectCandidate& c, double value) {
   return value;
 }
 /// True when `value` lies on a bound of the candidate's range, to 1e-4 of the range in the
-/// screening variable (the refits stop on a bound, not past it). An effect added from zero (a
-/// spring or a mass, linear from 0) is exempt: at its upper bound a spring holds its node, a
-/// physical answer (the truth may be stiffer still), not a stand-in.
+/// screening variable (the refits stop on a bound, not past it). Exempt are the effects whose
+/// bound is a physical limit, not a stand-in: one added from zero (a spring or a mass, linear
+/// from 0), since at its upper bound a spring holds its node (the truth may be stiffer still),
+/// and a support's flexibility, since at its softest (a thousandth of the structure's own
+/// stiffness there) the support is released in that direction (the truth may be softer still).
 bool on_bound(const EffectCandidate& c, double value) {
   if (c.variable == EffectCandidate::Variable::Linear && c.lower == 0) return false;
+  if (c.variable == EffectCandidate::Variable::Compliance) return false;
   const double lo = to_variable(c, c.lower), hi = to_variable(c, c.upper), x = to_variable(c, value);
   const double tolerance = 1e-4 * std::abs(hi - lo);
   return std::abs(x - lo) <= tolerance || std::abs(x - hi) <= tolerance;
