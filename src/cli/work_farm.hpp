@@ -1,6 +1,6 @@
 #pragma once
 // Independent calibrations spread over the processes of an MPI job (`mpirun -np N fullspace_calib
-// campaign|study|diagnose ...`), or run in turn by a process alone.
+// campaign|study|diagnose ...`), or run by a process alone, in turn or in threads (set_threads).
 //
 // Every process runs the same command on the same input (SPMD) and reaches the same maps in the
 // same order. In a map, rank 0 only hands out work: it gives the next index to whichever process
@@ -8,7 +8,8 @@
 // in index order, to every process, which then goes on as one. So the results, and the output
 // rank 0 alone writes, are the same for any number of processes. Processes other than rank 0 write
 // nothing to the standard output. Waiting processes poll with short sleeps instead of spinning,
-// so that an MPI job may have more processes than cores.
+// so that an MPI job may have more processes than cores. A process alone with several threads
+// keeps the same contract: results in index order, progress reported in index order.
 
 #include <functional>
 #include <string>
