@@ -13,6 +13,13 @@ namespace modalcal {
 
 namespace {
 
+/// ln Γ(a) for a > 0. Not std::lgamma: it also writes the global `signgam`, a data race when
+/// refits in threads test their residuals at the same time; lgamma_r (POSIX) returns the sign.
+double log_gamma(double a) {
+  int sign = 0;
+  return lgamma_r(a, &sign);
+}
+
 // Regularized lower incomplete gamma P(a, x) by its power series, for x < a + 1:
 // P = e^{-x} x^a / Gamma(a + 1) * sum_n x^n / ((a + 1) ... (a + n)).
 double lower_gamma_series(double a, double x) {
@@ -21,7 +28,7 @@ double lower_gamma_series(double a, double x) {
     term *= x / (a + n);
     sum += term;
   }
-  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * sum;
+  return std::exp(-x + a * std::log(x) - log_gamma(a)) * sum;
 }
 
 // Regularized upper incomplete gamma Q(a, x) by Legendre's continued fraction (modified Lentz),
@@ -41,7 +48,7 @@ double upper_gamma_fraction(double a, double x) {
     h *= delta;
     if (std::abs(delta - 1) < 1e-16) break;
   }
-  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * h;
+  return std::exp(-x + a * std::log(x) - log_gamma(a)) * h;
 }
 
 std::string percent(double x) {
