@@ -876,6 +876,7 @@ struct Args {
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
+  int neighbour_refits = RankingOptions().neighbour_refits;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
@@ -889,10 +890,10 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
-      "                    [--mesh-check R] [--refits N] [--place-refits N] [--no-kind-prior] [--print-diagnosis]\n"
-      "                    [--stop-when-consistent] [--jobs N]\n"
-      "  --refits, --place-refits, --no-kind-prior: RankingOptions::refits, place_refits and\n"
-      "  equal_kind_prior (defaults: diagnose's);\n"
+      "                    [--mesh-check R] [--refits N] [--place-refits N] [--neighbour-refits N] [--no-kind-prior]\n"
+      "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N]\n"
+      "  --refits, --place-refits, --neighbour-refits, --no-kind-prior: RankingOptions::refits,\n"
+      "  place_refits, neighbour_refits and equal_kind_prior (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
       "  is then one core's);\n"
@@ -962,6 +963,7 @@ int main(int argc, char** argv) {
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
+      else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
@@ -1001,9 +1003,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d neighbours%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.neighbour_refits, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1093,6 +1095,7 @@ int main(int argc, char** argv) {
           options.ranking.significance = args.significance;
           options.ranking.refits = args.refits;
           options.ranking.place_refits = args.place_refits;
+          options.ranking.neighbour_refits = args.neighbour_refits;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);

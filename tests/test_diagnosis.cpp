@@ -433,6 +433,37 @@ TEST(EffectRanking, AOneSidedEffectDoesNotHelpByANegativeValue) {
   EXPECT_EQ(ranking.effects[1].predicted_value, 0);
 }
 
+TEST(EffectRanking, TheBestRefitsNeighboursAreRefittedTooAndTheBestOfThemLeads) {
+  // A 0.1 mass at a node of the top: the first refits take one candidate per neighbourhood; the
+  // neighbour refits add the best-predicted masses a node or two from the best refit.
+  const Problem problem = noise_weighted(WithHiddenEffect({"point_mass@[3.25,0.5,0.5]:mass=0.1"}, 4),
+                                         MeasurementNoise{0.002, 0.02, 4});
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  auto refitted_neighbours = [&](int neighbour_refits) {
+    RankingOptions options;
+    options.neighbour_refits = neighbour_refits;
+    const EffectRanking ranking = rank_effects(problem, problem.truth_values(), candidates, options);
+    const RankedEffect& best = ranking.effects.front();
+    EXPECT_TRUE(best.acceptable()) << best.summary();
+    int count = 0;
+    for (const RankedEffect& r : ranking.effects)
+      if (r.refitted && &r != &best && r.candidate.neighbour_of(best.candidate)) {
+        ++count;
+        EXPECT_GE(r.chi2_after, best.chi2_after - 1e-9) << r.summary();  // same kind: the best fit leads
+      }
+    return count;
+  };
+  EXPECT_EQ(refitted_neighbours(0), 0);
+  const int with = refitted_neighbours(3);
+  EXPECT_GE(with, 2);
+  EXPECT_LE(with, 3);
+  RankingOptions bad;
+  bad.neighbour_refits = -1;
+  std::string error;
+  EXPECT_FALSE(bad.IsValid(&error));
+  EXPECT_NE(error.find("neighbour_refits"), std::string::npos) << error;
+}
+
 TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   // The truth's Poisson's ratio (0.02) lies below the candidate's range (nu0 - 0.2 = 0.1): the
   // refit stops on the bound, significant but standing in for a change it cannot make.

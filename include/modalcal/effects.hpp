@@ -113,6 +113,9 @@ struct MODALCAL_EXPORT EffectCandidate {
   /// Two candidates of one kind (change kind and property) closer than this are neighbours: the
   /// refits take the best of each group (two element sizes at its nodes).
   double neighbourhood = 0;
+  /// True when `other` is of this one's kind (change kind and property) and acts within the
+  /// larger of their neighbourhoods: one effect seen from two neighbouring places.
+  bool neighbour_of(const EffectCandidate& other) const;
 };
 
 /// Which automatic candidates to generate (all by default).
@@ -192,6 +195,12 @@ struct MODALCAL_EXPORT RankingOptions {
   int place_refits = 2;
   /// Range: (0, 1].
   double place_refit_share = 0.7;
+  /// Refits of the best refit's neighbours (its kind, within its neighbourhood), best predicted
+  /// first, after the refits above. The choice above refits one candidate per neighbourhood, and
+  /// for a large effect the first-order prediction does not rank the nodes of one neighbourhood
+  /// reliably: a point mass refitted one node from the truth's leaves a residual that later
+  /// steps fill with spurious effects. Range: >= 0.
+  int neighbour_refits = 3;
   /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
   /// by ΔX² alone (every candidate equally likely a priori).
   bool equal_kind_prior = true;

@@ -29,6 +29,7 @@ struct DiagnoseArgs {
   double refine = 0;
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
+  int neighbour_refits = RankingOptions().neighbour_refits;
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
@@ -381,6 +382,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;
   options.ranking.place_refits = args.place_refits;
+  options.ranking.neighbour_refits = args.neighbour_refits;
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
@@ -509,6 +511,10 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(non_negative_number());
   cmd->add_option("--place-refits", args->place_refits,
                   "then refit this many more, each the best-predicted effect apart from those chosen (default 2)")
+      ->check(non_negative_number());
+  cmd->add_option("--neighbour-refits", args->neighbour_refits,
+                  "then refit this many of the best refit's neighbours, the same effect a node or two away "
+                  "(default 3)")
       ->check(non_negative_number());
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")

@@ -230,8 +230,10 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
   for (size_t k = 1; k < ranking.effects.size(); ++k) {
     const RankedEffect& other = ranking.effects[k];
     // The data's verdict alone, without the prior over kinds: a likelihood ratio below 20 : 1,
-    // or one in the other's favour that the prior overruled.
-    if (other.acceptable() && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin)
+    // or one in the other's favour that the prior overruled. Not the same effect a node or two
+    // away (the neighbour refits), which says where, not what.
+    if (other.acceptable() && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin &&
+        !other.candidate.neighbour_of(best.candidate))
       step.alternatives.push_back(other);
   }
   return step;

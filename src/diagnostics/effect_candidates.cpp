@@ -591,6 +591,12 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
   return out;
 }
 
+bool EffectCandidate::neighbour_of(const EffectCandidate& other) const {
+  if (!location || !other.location || change.kind != other.change.kind || change.property != other.change.property)
+    return false;
+  return (*location - *other.location).norm() < std::max(neighbourhood, other.neighbourhood);
+}
+
 std::optional<Vec3> effect_location(const Model& model, const EffectCandidate& candidate) {
   if (candidate.location) return candidate.location;
   Model changed = model;

@@ -106,14 +106,6 @@ std::string format_value(double v) {
   return buffer;
 }
 
-/// Candidates of one kind (change kind and property) whose places lie within the larger of
-/// their neighbourhoods: one effect seen from two neighbouring nodes.
-bool neighbours(const EffectCandidate& a, const EffectCandidate& b) {
-  if (!a.location || !b.location || a.change.kind != b.change.kind || a.change.property != b.change.property)
-    return false;
-  return (*a.location - *b.location).norm() < std::max(a.neighbourhood, b.neighbourhood);
-}
-
 /// A candidate's kind for the prior of effects.hpp ("Which effect"): its change's kind and
 /// property, except that added point masses and the mass scales of block regions are one kind,
 /// mass added (or missing) at a place: two parametrizations of one physical hypothesis, which the
@@ -149,7 +141,7 @@ std::vector<size_t> refit_choices(const std::vector<RankedEffect>& screened, int
   for (size_t k : order) {
     if (static_cast<int>(chosen.size()) >= refits) break;
     if (std::none_of(chosen.begin(), chosen.end(),
-                     [&](size_t c) { return neighbours(screened[c].candidate, screened[k].candidate); }))
+                     [&](size_t c) { return screened[c].candidate.neighbour_of(screened[k].candidate); }))
       chosen.push_back(k);
   }
   return chosen;
@@ -362,14 +354,13 @@ std::vector<RankedEffect> predict(const Problem& problem, const Vector& calibrat
   return screened;
 }
 
-/// Refits of the best predictions (refit_choices), through the options' TaskMap, each judged by
-/// its likelihood-ratio test against the critical value.
-void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
-                std::vector<RankedEffect>* screened) {
+/// Refits of the screened candidates `choices` (those with a positive prediction or a declared
+/// start), through the options' TaskMap, each judged by its likelihood-ratio test against the
+/// critical value.
+void refit_chosen(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
+                  const std::vector<size_t>& choices, std::vector<RankedEffect>* screened) {
   const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
   std::vector<size_t> chosen;
-  std::vector<size_t> choices = refit_choices(*screened, options.refits);
-  add_place_refits(problem.model, *screened, options, &choices);
   for (size_t k : choices)
     if ((*screened)[k].predicted_reduction > 0 || (*screened)[k].candidate.initial) chosen.push_back(k);
   const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
@@ -407,6 +398,27 @@ void refit_best(const Problem& problem, const RankingOptions& options, const Eff
   }
 }
 
+/// The screened candidates to refit after the first refits: up to RankingOptions::neighbour_refits
+/// neighbours of the best-scoring acceptable refit, not refitted yet, best predicted first.
+std::vector<size_t> neighbour_choices(const std::vector<RankedEffect>& screened, int neighbour_refits) {
+  const RankedEffect* best = nullptr;
+  for (const RankedEffect& r : screened)
+    if (r.acceptable() && (!best || r.score() > best->score())) best = &r;
+  std::vector<size_t> chosen;
+  for (size_t k = 0; best && k < screened.size() && static_cast<int>(chosen.size()) < neighbour_refits; ++k)
+    if (!screened[k].refitted && best->candidate.neighbour_of(screened[k].candidate)) chosen.push_back(k);
+  return chosen;
+}
+
+/// Refits of the best predictions (refit_choices, add_place_refits), then of the best refit's
+/// neighbours (neighbour_choices), each judged by its likelihood-ratio test.
+void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
+                std::vector<RankedEffect>* screened) {
+  std::vector<size_t> choices = refit_choices(*screened, options.refits);
+  add_place_refits(problem.model, *screened, options, &choices);
+  refit_chosen(problem, options, ranking, choices, screened);
+  refit_chosen(problem, options, ranking, neighbour_choices(*screened, options.neighbour_refits), screened);
+}
 /// The standard error of the effect's value in `best`'s refit: the covariance of a noise-weighted
 /// least-squares estimate, (J^T J)^-1; NaN when its Jacobian cannot be had or is singular.
 double standard_error_of(const Problem& problem, const RankedEffect& best, const RankingOptions& options) {
@@ -450,6 +462,7 @@ bool RankingOptions::IsValid(std::string* error) const {
   };
   if (refits < 0) return bad("refits = " + std::to_string(refits) + ": must be >= 0");
   if (place_refits < 0) return bad("place_refits = " + std::to_string(place_refits) + ": must be >= 0");
+  if (neighbour_refits < 0) return bad("neighbour_refits = " + std::to_string(neighbour_refits) + ": must be >= 0");
   if (!(place_refit_share > 0 && place_refit_share <= 1))
     return bad("place_refit_share = " + std::to_string(place_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
