@@ -110,6 +110,13 @@ MODALCAL_EXPORT std::string to_string(const ModelChange& change);
 ///   `*model` is unchanged when it throws.
 MODALCAL_EXPORT ModelEffect apply_model_change(Model* model, const ModelChange& change);
 
+/// Applies `changes` in order, as apply_model_change() one after another would, and returns
+/// their effects; the model is copied and validated once, not once per change, which matters for
+/// the thousands of candidate effects a diagnosis screens at once.
+/// \throws std::invalid_argument as apply_model_change(), naming the first change that fails;
+///   `*model` is unchanged when it throws.
+MODALCAL_EXPORT std::vector<ModelEffect> apply_model_changes(Model* model, const std::vector<ModelChange>& changes);
+
 /// The block (index) and elements a region change (`region@...`) covers on `model`.
 /// \throws std::invalid_argument as apply_model_change for a malformed region or unknown block;
 ///   for another kind of change.

@@ -566,11 +566,14 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
     throw std::invalid_argument("problem_with_effects: " + std::to_string(values.size()) + " values for " +
                                 std::to_string(candidates.size()) + " candidates");
   Problem out = problem;
+  std::vector<ModelChange> changes;
+  for (size_t k = 0; k < candidates.size(); ++k) {
+    changes.push_back(candidates[k].change);
+    changes.back().value = values[k];
+  }
+  apply_model_changes(&out.model, changes);  // throws naming the change
   for (size_t k = 0; k < candidates.size(); ++k) {
     const EffectCandidate& c = candidates[k];
-    ModelChange change = c.change;
-    change.value = values[k];
-    apply_model_change(&out.model, change);  // throws naming the change
     Parameter q;
     q.name = c.name;
     q.targets = {out.model.find_property(c.name)};

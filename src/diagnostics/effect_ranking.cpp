@@ -204,16 +204,25 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
 /// aside with the reason.
 std::vector<EffectCandidate> applicable(const Problem& problem, const std::vector<EffectCandidate>& candidates,
                                         EffectRanking* ranking) {
+  std::vector<ModelChange> changes;
+  for (const EffectCandidate& c : candidates) {
+    changes.push_back(c.change);
+    changes.back().value = c.screen_value;
+  }
+  try {  // usually all of them at once; else one at a time, to set aside those that fail
+    Model all = problem.model;
+    apply_model_changes(&all, changes);
+    return candidates;
+  } catch (const std::invalid_argument&) {
+  }
   std::vector<EffectCandidate> usable;
   Model trial = problem.model;
-  for (const EffectCandidate& c : candidates) {
-    ModelChange change = c.change;
-    change.value = c.screen_value;
+  for (size_t k = 0; k < candidates.size(); ++k) {
     try {
-      apply_model_change(&trial, change);
-      usable.push_back(c);
+      apply_model_change(&trial, changes[k]);
+      usable.push_back(candidates[k]);
     } catch (const std::invalid_argument& e) {
-      ranking->set_aside.emplace_back(c.name, std::string("could not be applied: ") + e.what());
+      ranking->set_aside.emplace_back(candidates[k].name, std::string("could not be applied: ") + e.what());
     }
   }
   return usable;

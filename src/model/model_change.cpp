@@ -660,12 +660,21 @@ std::string to_string(const ModelChange& change) {
   return std::string(kind_keyword(change.kind)) + "@" + places + ":" + change.property + value;
 }
 
+namespace {
+
+/// `change` made on `changed`, which may be left half changed when it throws.
+ModelEffect make_change(Model& changed, const ModelChange& change, const std::string& text) {
+  return change.kind == ModelChange::Kind::SetProperty ? set_property(changed, change, text)
+         : change.kind == ModelChange::Kind::AddRegion ? add_region(changed, change, text)
+                                                       : add_entity(changed, change, text);
+}
+
+}  // namespace
+
 ModelEffect apply_model_change(Model* model, const ModelChange& change) {
   const std::string text = to_string(change);
   Model changed = *model;
-  const ModelEffect effect = change.kind == ModelChange::Kind::SetProperty ? set_property(changed, change, text)
-                             : change.kind == ModelChange::Kind::AddRegion ? add_region(changed, change, text)
-                                                                           : add_entity(changed, change, text);
+  const ModelEffect effect = make_change(changed, change, text);
   try {
     changed.validate();
   } catch (const std::invalid_argument& e) {
@@ -673,6 +682,23 @@ ModelEffect apply_model_change(Model* model, const ModelChange& change) {
   }
   *model = std::move(changed);
   return effect;
+}
+
+std::vector<ModelEffect> apply_model_changes(Model* model, const std::vector<ModelChange>& changes) {
+  Model changed = *model;
+  std::vector<ModelEffect> effects;
+  effects.reserve(changes.size());
+  for (const ModelChange& change : changes) effects.push_back(make_change(changed, change, to_string(change)));
+  try {
+    changed.validate();
+  } catch (const std::invalid_argument&) {
+    // Which change made the model invalid: one at a time, as apply_model_change() says it.
+    Model one_by_one = *model;
+    for (const ModelChange& change : changes) apply_model_change(&one_by_one, change);
+    throw;
+  }
+  *model = std::move(changed);
+  return effects;
 }
 
 std::pair<int, std::vector<int>> region_elements(const Model& model, const ModelChange& change) {
