@@ -300,6 +300,37 @@ TEST(ModelChange, ErrorsNameTheItemAndLikelyCause) {
   ExpectChangeError("support@root:kx=0", {"must be positive"});
 }
 
+TEST(ModelChange, ABatchOfChangesIsTheirApplicationOneAfterAnother) {
+  const Model nominal = LoadBar();
+  std::vector<ModelChange> changes;
+  for (const char* text : {"spring@tip:ky=50", "point_mass@tip:mass=0.05", "point_mass@tip:mass=0.1", "support@root:kx=1e6",
+                           "region@bar/[0,0,0]/[4,1,1]:stiffness_scale=2", "link.kx=7", "spring@tip:kz=20"})
+    changes.push_back(parse_model_change(text));
+  Model one_by_one = nominal, batch = nominal;
+  std::vector<std::string> names;
+  for (const ModelChange& c : changes) names.push_back(apply_model_change(&one_by_one, c).name);
+  const std::vector<ModelEffect> effects = apply_model_changes(&batch, changes);
+  ASSERT_EQ(effects.size(), changes.size());
+  for (size_t k = 0; k < changes.size(); ++k) EXPECT_EQ(effects[k].name, names[k]) << k;
+  EXPECT_EQ(batch.ground_springs.size(), one_by_one.ground_springs.size());
+  EXPECT_EQ(batch.point_masses.size(), one_by_one.point_masses.size());
+  const Vector f = Frequencies(one_by_one, 4), g = Frequencies(batch, 4);
+  EXPECT_LT(((f - g).array() / f.array()).abs().maxCoeff(), 1e-12);
+
+  // A change that fails leaves the model as it was and is named, wherever it stands in the batch.
+  changes.insert(changes.begin() + 3, parse_model_change("link.kx=-1"));
+  Model untouched = nominal;
+  try {
+    apply_model_changes(&untouched, changes);
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("change 'link.kx=-1'"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(untouched.ground_springs.size(), nominal.ground_springs.size());
+  EXPECT_EQ(untouched.point_masses.size(), nominal.point_masses.size());
+  EXPECT_TRUE(property_differences(nominal, untouched).empty());
+}
+
 TEST(ModelChange, PropertyDifferencesListWhatChangedExceptTheExcluded) {
   const Model nominal = LoadBar();
   Model changed = nominal;
