@@ -360,13 +360,8 @@ TEST(Cli, ImportTestDataNamesTheBadLineAndKeepsInputs) {
 const std::string kSensedBar = testing::SensedBar();
 
 TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
-  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
-  const std::string dir = std::filesystem::path(nominal).parent_path().string();
-  ASSERT_EQ(RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 --noise-freq 0.002 " +
-                   "--noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml")
-                .exit_code,
-            0);
-  const std::string study = WriteTempFile("study.yaml", std::string(kSensedBar) + "measured: {file: data.yaml}\n");
+  const std::string study = testing::WriteTipMassStudy();
+  const std::string dir = std::filesystem::path(study).parent_path().string();
   CliRun run = RunCli("diagnose " + study + " --quiet --json " + dir + "/diagnose.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   for (const char* part : {"residual test: chi-square", "where the model fails", "which effect is missing",

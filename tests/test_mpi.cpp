@@ -189,13 +189,8 @@ TEST(Mpi, CampaignAcrossRanksEqualsTheSerialCampaignAndTheMergeOfItsParts) {
 // The diagnosis's refits and backward pass across ranks: the same verdict, steps and values.
 TEST(Mpi, DiagnosisAcrossRanksEqualsTheSerialDiagnosis) {
   OneBlasThread();
-  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
-  const std::string dir = std::filesystem::path(nominal).parent_path().string();
-  ASSERT_EQ(RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 --noise-freq 0.002 " +
-                   "--noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml")
-                .exit_code,
-            0);
-  const std::string study = WriteTempFile("study.yaml", kSensedBar + "measured: {file: data.yaml}\n");
+  const std::string study = testing::WriteTipMassStudy();
+  const std::string dir = std::filesystem::path(study).parent_path().string();
   CliRun serial = RunCli("diagnose " + study + " --quiet --json " + dir + "/serial.json");
   ASSERT_EQ(serial.exit_code, 0) << serial.output;
   CliRun mpi = RunMpi("diagnose " + study + " --quiet --json " + dir + "/mpi.json");
@@ -232,13 +227,8 @@ TEST(Threads, CampaignInThreadsEqualsTheSerialCampaign) {
 // same diagnosis as one refit after another.
 TEST(Threads, DiagnosisWithItsRefitsInThreadsEqualsTheSerialDiagnosis) {
   OneBlasThread();
-  const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
-  const std::string dir = std::filesystem::path(nominal).parent_path().string();
-  ASSERT_EQ(RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 --noise-freq 0.002 " +
-                   "--noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml")
-                .exit_code,
-            0);
-  const std::string study = WriteTempFile("study.yaml", kSensedBar + "measured: {file: data.yaml}\n");
+  const std::string study = testing::WriteTipMassStudy();
+  const std::string dir = std::filesystem::path(study).parent_path().string();
   CliRun serial = RunCli("diagnose " + study + " --jobs 1 --json " + dir + "/serial.json");
   ASSERT_EQ(serial.exit_code, 0) << serial.output;
   EXPECT_NE(serial.output.find("  refit "), std::string::npos) << serial.output;  // one refit's lines at a time

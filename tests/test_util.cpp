@@ -174,6 +174,15 @@ options:
 )";
 }
 
+std::string WriteTipMassStudy() {
+  const std::string nominal = WriteTempFile("nominal.yaml", SensedBar());
+  const std::string dir = std::filesystem::path(nominal).parent_path().string();
+  const CliRun synth = RunCli("synth " + nominal + " --truth 'point_mass@tip:mass=0.05' --modes 1,2,3,4 " +
+                              "--noise-freq 0.002 --noise-shape 0.01 --seed 3 -o " + dir + "/data.yaml");
+  EXPECT_EQ(synth.exit_code, 0) << synth.output;
+  return WriteTempFile("study.yaml", SensedBar() + "measured: {file: data.yaml}\n");
+}
+
 Model MakeChain(int n, double m, double k, bool grounded) {
   Model model;
   for (int i = 0; i <= n; ++i) model.add_node(i + 1, Vec3(i, 0, 0));

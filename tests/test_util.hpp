@@ -69,6 +69,12 @@ CliRun RunShell(const std::string& command);
 /// triaxial sensors along the top edge and six modes: the CLI tests' small problem.
 std::string SensedBar();
 
+/// Writes SensedBar() as nominal.yaml, data measured on a truth with 50 g at its tip (modes 1-4,
+/// 0.2 % frequency and 1 % shape noise, seed 3) as data.yaml, and study.yaml, the nominal model
+/// reading those data, into the test's folder; returns study.yaml's path. Fails the test when
+/// `synth` does.
+std::string WriteTipMassStudy();
+
 /// A spring-mass chain along x: `n` point masses `m` on nodes 1..n joined by joints of axial
 /// stiffness `k` (properties "joint<i>.kx"); node 0 is fixed in x when `grounded`, otherwise
 /// it is a further mass (free-free chain with one rigid-body mode). y and z are fixed
