@@ -43,7 +43,6 @@ struct DiagnoseArgs {
   bool quiet = false;
 };
 
-
 /// The screen map's arrays for the VTU file (ScreenMap, effects.hpp).
 void add_screen_map_fields(const ScreenMap& map, VtuFields* fields) {
   auto array = [](const char* name, const Vector& v) {
