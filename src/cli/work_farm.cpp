@@ -52,23 +52,27 @@ std::vector<std::string> results_of(std::vector<Piece>&& pieces) {
   return results;
 }
 
+/// OpenBLAS's thread-count setter, or null when the BLAS loaded is another one.
+using SetBlasThreads = void (*)(int);
+SetBlasThreads blas_thread_setter() {
+  return reinterpret_cast<SetBlasThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+}
+
 /// One BLAS thread per rank: ranks share the cores. OPENBLAS_NUM_THREADS, read when OpenBLAS
 /// loaded, wins when set; children (the study's calibrations) inherit the variable.
 void one_blas_thread() {
   if (std::getenv("OPENBLAS_NUM_THREADS")) return;
   setenv("OPENBLAS_NUM_THREADS", "1", 0);
-  using SetThreads = void (*)(int);
-  if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
+  if (const SetBlasThreads set = blas_thread_setter()) set(1);
 }
 
 /// While it lives (and `active`), OpenBLAS runs each call in the calling thread; afterwards its
 /// earlier thread count is back. Set and restored around a threaded map, when no BLAS call runs.
 class OneBlasThreadWhile {
  public:
-  explicit OneBlasThreadWhile(bool active) {
+  explicit OneBlasThreadWhile(bool active) : set_(blas_thread_setter()) {
     using GetThreads = int (*)();
     const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-    set_ = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
     if (!active || !get || !set_) return;
     before_ = get();
     if (before_ > 1) set_(1);
@@ -80,8 +84,7 @@ class OneBlasThreadWhile {
   OneBlasThreadWhile& operator=(const OneBlasThreadWhile&) = delete;
 
  private:
-  using SetThreads = void (*)(int);
-  SetThreads set_ = nullptr;
+  SetBlasThreads set_ = nullptr;
   int before_ = 0;
 };
 
