@@ -794,11 +794,38 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
     EXPECT_NEAR(m.extrapolated_percent, m.shift_percent * 2.25 / 1.25, 1e-9 * std::abs(m.shift_percent)) << m.label;
   EXPECT_TRUE(d.discretization->significant) << report;
-  EXPECT_TRUE(d.discretization->corrected);
+  EXPECT_TRUE(d.discretization->corrected) << report;
+  EXPECT_LT(d.discretization->score_corrected, d.discretization->score_as_measured) << report;
   for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
     EXPECT_LT(m.shift_percent, 0) << m.label << ": a finer mesh is more flexible\n" << report;
   EXPECT_TRUE(d.steps.empty()) << report;
   EXPECT_NE(d.recommendation.find("Refine the mesh first"), std::string::npos) << d.recommendation;
+}
+
+TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) {
+  // Data from the model's own mesh with the pad half as stiff: the finer mesh moves the modes
+  // much as the softer pad does, so the data corrected for the mesh fit significantly better. On
+  // them the loop needed two more effects (the joint along z and the root's support) beside the
+  // pad's scale; on the data as measured the pad alone explains everything. The loop runs on both
+  // and keeps the data as measured, and does not say to refine the mesh first.
+  const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.5"}, 3);
+  Problem finer = LoadProblem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
+  finer.measured = problem.measured;
+  finer.synthetic.reset();
+  finer.measurement_noise = problem.measurement_noise;
+  DiagnosisOptions options;
+  options.finer_mesh = &finer;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
+  const std::string report = format_diagnosis(problem, d);
+  ASSERT_TRUE(d.discretization) << report;
+  EXPECT_TRUE(d.discretization->significant) << report;
+  EXPECT_FALSE(d.discretization->corrected) << report;
+  EXPECT_LT(d.discretization->score_as_measured, d.discretization->score_corrected) << report;
+  EXPECT_EQ(d.accepted(), std::vector<std::string>{"pad.stiffness_scale"}) << report;
+  ASSERT_TRUE(d.final_fit.test);
+  EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
+  EXPECT_EQ(d.recommendation.find("Refine the mesh first"), std::string::npos) << d.recommendation;
+  EXPECT_NE(report.find("the diagnosis below is of the data as measured"), std::string::npos) << report;
 }
 
 TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {

@@ -189,7 +189,15 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   double chi2_explained = 0;
   double critical_value = 0;  ///< chi-square(1) at the significance level
   bool significant = false;   ///< chi2_explained above it: refine the mesh first
-  bool corrected = false;     ///< the loop ran on the corrected data
+  /// When significant, the loop runs twice, on the data corrected for the mesh and on the data as
+  /// measured, and the one whose end explains the data better is kept: each end's score is
+  /// -2 ln L up to a common constant (its X² plus the log of the variance the allowance adds to
+  /// each frequency, sum ln(1 + allowance²/noise²), on the corrected data) plus the step's
+  /// critical value per kept effect. A physical effect that moves the modes as the mesh does is
+  /// thus not taken for the mesh when the data say otherwise, and the mesh not for a physical
+  /// effect. NaN when the loop ran once.
+  double score_corrected = NAN, score_as_measured = NAN;
+  bool corrected = false;     ///< the loop ran on the corrected data (and its end was kept)
 };
 
 /// An accepted effect the backward pass removed.

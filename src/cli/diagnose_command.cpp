@@ -218,7 +218,9 @@ nlohmann::json discretization_json(const Diagnosis& d) {
   return {{"refinement", est.refinement},         {"dofs", est.dofs},
           {"finer_dofs", est.finer_dofs},         {"per_mode", modes},
           {"chi2_explained", est.chi2_explained}, {"critical_value", est.critical_value},
-          {"significant", est.significant},       {"corrected", est.corrected}};
+          {"significant", est.significant},       {"corrected", est.corrected},
+          {"score_corrected", json_number(est.score_corrected)},
+          {"score_as_measured", json_number(est.score_as_measured)}};
 }
 
 /// The stepwise loop: forward steps, exchanges, what was kept and dropped, the residual at the end.

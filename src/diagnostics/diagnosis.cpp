@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
+#include <utility>
 
 #include "objective/shape_misfit.hpp"
 
@@ -407,7 +408,17 @@ std::string discretization_text(const Diagnosis& d) {
   double largest = 0;
   for (const DiscretizationEstimate::Mode& m : est.per_mode)
     largest = std::max(largest, std::abs(m.shift_percent));
-  char text[400];
+  char text[600];
+  if (!est.corrected && est.score_as_measured < est.score_corrected) {
+    std::snprintf(text, sizeof text,
+                  "The mesh's discretization error (up to %.3g %% in frequency) would account for %.4g of the "
+                  "chi-square (more than %.3g), but the effects below explain the data as measured better than the "
+                  "mesh does (-2 ln L plus %.3g per effect: %.4g against %.4g corrected for the mesh); the diagnosis "
+                  "is of the data as measured. ",
+                  largest, est.chi2_explained, est.critical_value, d.ranking.critical_value, est.score_as_measured,
+                  est.score_corrected);
+    return text;
+  }
   std::snprintf(text, sizeof text,
                 "Refine the mesh first: its discretization error (up to %.3g %% in frequency) accounts for %.4g of "
                 "the chi-square (more than %.3g). %s",
@@ -536,6 +547,86 @@ Problem weighted_if(bool noise_known, const Problem& problem) {
   return noise_known ? noise_weighted(problem, *problem.measurement_noise) : problem;
 }
 
+/// The nominal calibration of `weighted` from `from`, and the fit at its result.
+void calibrate_nominal(const Problem& weighted, const Vector& from, const DiagnosisOptions& options,
+                       ReducedSummary* summary, FitState* fit) {
+  Objective objective(weighted, options.ranking.objective);
+  *summary = minimize_reduced(objective, from, options.calibration);
+  if (summary->final.size() != from.size())
+    throw std::runtime_error("diagnose: the calibration could not start: " + summary->message);
+  *fit = evaluate_fit(weighted, summary->final, options.test);
+}
+
+/// The data moved by the finer mesh's change, with the allowance, and the calibration to start
+/// their loop from, when the mesh accounts for a significant part of the residual; else nullopt.
+std::optional<std::pair<Problem, Vector>> check_the_mesh(const Problem& problem, const DiagnosisOptions& options,
+                                                         Diagnosis* d) {
+  // The parameters absorb what the mesh does alike in every mode (a uniformly softer mesh is a
+  // lower modulus), so the mesh's share is what recalibrating on the corrected data gains.
+  DiscretizationEstimate& est = d->discretization.emplace(
+      estimate_discretization(problem, *options.finer_mesh, d->calibration.final, options.ranking.significance));
+  // The statistic compares the data moved by the finer mesh's change (no free parameter) with
+  // the data as they are; an allowance for model error would lower any chi-square, so it
+  // enters only the loop, once the mesh is found to matter.
+  ReducedSummary summary;
+  FitState fit;
+  calibrate_nominal(weighted_if(d->noise_known, corrected_for_mesh(problem, est, false)), d->calibration.final,
+                    options, &summary, &fit);
+  est.chi2_explained = d->before.statistic - fit.statistic;
+  est.significant = d->noise_known && est.chi2_explained > est.critical_value;
+  if (!est.significant || !options.correct_for_discretization) return std::nullopt;
+  return std::make_pair(corrected_for_mesh(problem, est, true), summary.final);
+}
+
+/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
+/// pass, with the first step's localization and map.
+void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  const Vector calibrated = d->calibration.final;
+  localize(problem, calibrated, options, d);
+  d->started_with = enabled_candidates(problem, options.candidates);
+  d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
+  LoopState state = starting_state(fitted, d->started_with, calibrated, options);
+  if (!d->started_with.empty()) d->before = state.fit;
+  for (int k = 0; k < std::max(1, options.max_steps); ++k) {
+    if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
+    if (!forward_step(fitted, &state, options, k < options.max_steps, d)) break;
+  }
+  d->ranking = d->rankings.front();
+  d->map = screen_map(problem.model, d->ranking);
+  if (options.exchange) exchange_pass(fitted, &state, options, d);
+  if (options.backward) backward_pass(fitted, &state, options, d);
+  d->effects = state.effects;
+  d->final_parameters = state.parameters;
+  d->final_fit = state.fit;
+}
+
+/// -2 ln L at the end of d's loop on `data` (unweighted, with a stated noise), up to a constant
+/// common to the data corrected for the mesh and as measured, plus the critical value of a step
+/// per kept effect (DiscretizationEstimate::score_corrected).
+double loop_score(const Problem& data, const Diagnosis& d) {
+  const double noise = data.measurement_noise->frequency;
+  double score = d.final_fit.statistic;
+  for (const MeasuredMode& m : data.measured) score += std::log1p(m.model_error * m.model_error / (noise * noise));
+  return score + d.ranking.critical_value * static_cast<double>(d.accepted().size());
+}
+
+/// The loop on the data corrected for the mesh (`corrected`, from check_the_mesh()) and on the
+/// data as measured; d becomes the one whose end scores lower, the data as measured on a tie.
+void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
+                                    const DiagnosisOptions& options, Diagnosis* d) {
+  Diagnosis as_measured = *d;
+  run_loop(problem, weighted_if(d->noise_known, problem), options, &as_measured);
+  const Problem fitted = weighted_if(d->noise_known, corrected.first);
+  calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
+  run_loop(problem, fitted, options, d);
+  const double score_corrected = loop_score(corrected.first, *d);
+  const double score_as_measured = loop_score(problem, as_measured);
+  if (!(score_corrected < score_as_measured)) *d = std::move(as_measured);
+  d->discretization->corrected = score_corrected < score_as_measured;
+  d->discretization->score_corrected = score_corrected;
+  d->discretization->score_as_measured = score_as_measured;
+}
+
 }  // namespace
 
 Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
@@ -546,54 +637,13 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
                                 std::to_string(problem.parameters.size()) + " parameters");
   Diagnosis d;
   d.noise_known = has_noise(problem);
-  Problem fitted = weighted_if(d.noise_known, problem);
-
-  auto calibrate = [&](const Problem& weighted, const Vector& from, ReducedSummary* summary, FitState* fit) {
-    Objective objective(weighted, options.ranking.objective);
-    *summary = minimize_reduced(objective, from, options.calibration);
-    if (summary->final.size() != start.size())
-      throw std::runtime_error("diagnose: the calibration could not start: " + summary->message);
-    *fit = evaluate_fit(weighted, summary->final, options.test);
-  };
-  calibrate(fitted, start, &d.calibration, &d.before);
-  if (options.finer_mesh) {
-    // The parameters absorb what the mesh does alike in every mode (a uniformly softer mesh is a
-    // lower modulus), so the mesh's share is what recalibrating on the corrected data gains.
-    DiscretizationEstimate& est = d.discretization.emplace(
-        estimate_discretization(problem, *options.finer_mesh, d.calibration.final, options.ranking.significance));
-    // The statistic compares the data moved by the finer mesh's change (no free parameter) with
-    // the data as they are; an allowance for model error would lower any chi-square, so it
-    // enters only the loop, once the mesh is found to matter.
-    ReducedSummary summary;
-    FitState fit;
-    calibrate(weighted_if(d.noise_known, corrected_for_mesh(problem, est, false)), d.calibration.final, &summary, &fit);
-    est.chi2_explained = d.before.statistic - fit.statistic;
-    est.significant = d.noise_known && est.chi2_explained > est.critical_value;
-    if (est.significant && options.correct_for_discretization) {  // the loop sees what the mesh cannot explain
-      est.corrected = true;
-      fitted = weighted_if(d.noise_known, corrected_for_mesh(problem, est, true));
-      calibrate(fitted, summary.final, &d.calibration, &d.before);
-    }
-  }
-  const Vector calibrated = d.calibration.final;
-  localize(problem, calibrated, options, &d);
-
-  d.started_with = enabled_candidates(problem, options.candidates);
-  d.started_with.insert(d.started_with.end(), options.added.begin(), options.added.end());
-  LoopState state = starting_state(fitted, d.started_with, calibrated, options);
-  if (!d.started_with.empty()) d.before = state.fit;
-  for (int k = 0; k < std::max(1, options.max_steps); ++k) {
-    if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
-    if (!forward_step(fitted, &state, options, k < options.max_steps, &d)) break;
-  }
-  d.ranking = d.rankings.front();
-  d.map = screen_map(problem.model, d.ranking);
-  if (options.exchange) exchange_pass(fitted, &state, options, &d);
-  if (options.backward) backward_pass(fitted, &state, options, &d);
-
-  d.effects = state.effects;
-  d.final_parameters = state.parameters;
-  d.final_fit = state.fit;
+  calibrate_nominal(weighted_if(d.noise_known, problem), start, options, &d.calibration, &d.before);
+  const std::optional<std::pair<Problem, Vector>> corrected =
+      options.finer_mesh ? check_the_mesh(problem, options, &d) : std::nullopt;
+  if (corrected)
+    loop_with_and_without_the_mesh(problem, *corrected, options, &d);
+  else
+    run_loop(problem, weighted_if(d.noise_known, problem), options, &d);
   // What the backward pass kept decides, not the forward steps: a step whose refit only escaped
   // a local minimum of the calibration is dropped again, and the residual at the end is noise.
   d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error ||
@@ -663,7 +713,15 @@ std::string format_discretization(const DiscretizationEstimate& est) {
   std::snprintf(line, sizeof line, "  explains %.4g of the chi-square (%s %.3g)%s\n", est.chi2_explained,
                 est.significant ? "more than" : "not more than", est.critical_value,
                 est.corrected ? "; the diagnosis below is of the data corrected for it" : "");
-  return text + line;
+  text += line;
+  if (std::isfinite(est.score_corrected) && std::isfinite(est.score_as_measured)) {
+    std::snprintf(line, sizeof line,
+                  "  the loop on both: -2 ln L plus a step's critical value per effect %.4g corrected, %.4g as "
+                  "measured; the diagnosis below is of the data %s\n",
+                  est.score_corrected, est.score_as_measured, est.corrected ? "corrected" : "as measured");
+    text += line;
+  }
+  return text;
 }
 
 /// The reading and the unmeasured mode that would tell a step's effect from an alternative.
