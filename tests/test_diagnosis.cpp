@@ -828,6 +828,31 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   EXPECT_NE(report.find("the diagnosis below is of the data as measured"), std::string::npos) << report;
 }
 
+TEST(Diagnosis, AnEffectTheLaterRefitsPutOnABoundIsDroppedAsAStandIn) {
+  // The base lighter as a whole and its Poisson's ratio changed: the first step takes the mass of
+  // one region of the base for both (declared here with the range [0.5, 0.9]; it refits to 0.58),
+  // and once the block's mass scale is in, the region's refit goes to 0.9, its upper bound. A step
+  // would not accept an effect there; the backward pass drops it, saying why.
+  Problem problem = WithHiddenEffect({"base.nu=0.15", "base.mass_scale=0.85"}, 7);
+  DeclaredEffect region;
+  region.effect = "base_region_0p75_0p5_0p75_n18.mass_scale";
+  region.lower = 0.5;
+  region.upper = 0.9;
+  problem.effects.push_back(region);
+  const Diagnosis d = diagnose(problem, problem.initial_values());
+  const std::string report = format_diagnosis(problem, d);
+  ASSERT_FALSE(d.steps.empty()) << report;
+  EXPECT_EQ(d.steps.front().effect.candidate.name, region.effect) << report;
+  EXPECT_LT(d.steps.front().effect.value, 0.85) << report;
+  ASSERT_FALSE(d.dropped.empty()) << report;
+  EXPECT_EQ(d.dropped.front().name, region.effect);
+  EXPECT_TRUE(d.dropped.front().on_bound) << report;
+  EXPECT_NEAR(d.dropped.front().value, 0.9, 1e-3) << report;
+  const std::vector<std::string> accepted = d.accepted();
+  EXPECT_EQ(std::count(accepted.begin(), accepted.end(), region.effect), 0) << report;
+  EXPECT_NE(d.recommendation.find("went to a bound of its range"), std::string::npos) << d.recommendation;
+}
+
 TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {
   Problem problem = WithHiddenEffect({"j.krx=20"}, 5);
   problem.measurement_noise.reset();

@@ -200,11 +200,15 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   bool corrected = false;     ///< the loop ran on the corrected data (and its end was kept)
 };
 
-/// An accepted effect the backward pass removed.
+/// An accepted effect the backward pass removed: one the others make redundant, or one that
+/// the later effects' refits moved onto a bound of its range (EffectCandidate::on_bound), where it
+/// stands in for something else, as a step would not have accepted it.
 struct MODALCAL_EXPORT DroppedEffect {
   std::string name;
   double chi2_increase = 0;   ///< X^2 refitted without it, minus X^2 with it
   double critical_value = 0;  ///< chi-square(1) at the significance level
+  bool on_bound = false;      ///< dropped for ending on a bound, whatever its chi2_increase
+  double value = NAN;         ///< its value when dropped
 };
 
 struct MODALCAL_EXPORT Diagnosis {

@@ -116,6 +116,13 @@ struct MODALCAL_EXPORT EffectCandidate {
   /// True when `other` is of this one's kind (change kind and property) and acts within the
   /// larger of their neighbourhoods: one effect seen from two neighbouring places.
   bool neighbour_of(const EffectCandidate& other) const;
+  /// True when `value` lies on a bound of the range, to 1e-4 of the range in the screening
+  /// variable, and that bound is not a physical limit: a refit that ends there asks for more
+  /// change than the candidate makes, and stands in for something else. Exempt are the effects
+  /// added from zero (a spring or a mass: at its upper bound a spring holds its node, the truth may
+  /// be stiffer still) and a support's flexibility (at its softest, a thousandth of the
+  /// structure's own stiffness there, the support is released in that direction).
+  bool on_bound(double value) const;
 };
 
 /// Which automatic candidates to generate (all by default).

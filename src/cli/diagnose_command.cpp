@@ -238,7 +238,11 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
   json["accepted"] = d.accepted();
   json["dropped"] = nlohmann::json::array();
   for (const DroppedEffect& x : d.dropped)
-    json["dropped"].push_back({{"name", x.name}, {"chi2_increase", x.chi2_increase}, {"critical_value", x.critical_value}});
+    json["dropped"].push_back({{"name", x.name},
+                               {"chi2_increase", x.chi2_increase},
+                               {"critical_value", x.critical_value},
+                               {"on_bound", x.on_bound},
+                               {"value", json_number(x.value)}});
   json["started_with"] = nlohmann::json::array();
   for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
   json["residual_final"] = {{"statistic", d.final_fit.statistic},

@@ -323,9 +323,23 @@ std::vector<std::optional<LoopState>> states_without_each(const Problem& fitted,
   return without;
 }
 
-/// The backward pass: while the weakest effect in the model (the one whose removal raises the
-/// misfit least; the problem's own enabled effects included) is below the critical value at the
-/// stated level, it is dropped and the rest refitted.
+/// The value of `state`'s effect `k`.
+double effect_value(const LoopState& state, size_t k) {
+  return state.parameters[state.parameters.size() - static_cast<Eigen::Index>(state.effects.size() - k)];
+}
+
+/// The first effect the loop accepted (not one the model started with) that the later refits
+/// moved onto a bound of its range; effects.size() when none is.
+size_t accepted_on_bound(const Diagnosis& d, const LoopState& state) {
+  for (size_t k = d.started_with.size(); k < state.effects.size(); ++k)
+    if (state.effects[k].on_bound(effect_value(state, k))) return k;
+  return state.effects.size();
+}
+
+/// The backward pass: an accepted effect the later refits moved onto a bound of its range is
+/// dropped first, as a step would not have accepted it there; then, while the weakest effect in
+/// the model (the one whose removal raises the misfit least; the problem's own enabled effects
+/// included) is below the critical value at the stated level, it is dropped and the rest refitted.
 void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
   const double critical = chi_square_critical_value(options.ranking.significance, 1);
   while (!state->effects.empty()) {
@@ -340,8 +354,16 @@ void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
         weakest = k;
       }
     }
-    if (weakest == without.size() || weakest_increase >= critical) return;
-    d->dropped.push_back({state->effects[weakest].name, weakest_increase, critical});
+    const size_t on_bound = accepted_on_bound(*d, *state);
+    const bool stand_in = on_bound < without.size() && without[on_bound];
+    if (stand_in) {
+      weakest = on_bound;
+      weakest_increase = lr_statistic(*d, *without[on_bound], *state);
+    } else if (weakest == without.size() || weakest_increase >= critical) {
+      return;
+    }
+    d->dropped.push_back(
+        {state->effects[weakest].name, weakest_increase, critical, stand_in, effect_value(*state, weakest)});
     *state = std::move(*without[weakest]);
   }
 }
@@ -360,7 +382,8 @@ const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name
 /// region's mass scale for two point masses). With two or more accepted, each in turn is taken out,
 /// the rest refitted, and the candidates screened again with the others in the model; the best
 /// significant refit there replaces it when its score S beats what the accepted effect scores
-/// there (its own likelihood-ratio statistic less its kind's penalty).
+/// there (its own likelihood-ratio statistic less its kind's penalty), or whenever it has gone to a
+/// bound of its range.
 void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
   const size_t first = d->started_with.size();
   if (state->effects.size() < first + 2) return;
@@ -375,7 +398,11 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
     const EffectRanking ranking = rank_effects(without.problem, without.parameters,
                                                generate_candidates(without.problem, options.candidates), options.ranking);
     const RankedEffect* best = acceptable(ranking);
-    const double incumbent_score = lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
+    // One the later refits moved onto a bound stands in for something else: any acceptable
+    // effect replaces it.
+    const double incumbent_score = state->effects[k].on_bound(effect_value(*state, k))
+                                       ? -INFINITY
+                                       : lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
     if (!best || best->candidate.name == state->effects[k].name || !(best->score() > incumbent_score)) continue;
     DiagnosisStep exchange = step_accepting(ranking, without.problem.model, incumbent->step);
     exchange.replaces = state->effects[k].name;
@@ -465,7 +492,10 @@ std::string effects_text(const Diagnosis& d) {
     first = false;
   }
   text += ". ";
-  for (const DroppedEffect& x : d.dropped) text += x.name + " was dropped again: the others explain it. ";
+  for (const DroppedEffect& x : d.dropped)
+    text += x.name + (x.on_bound ? " was dropped again: refitted with the later effects it went to a bound of its range (" +
+                                       format_number(x.value) + "), where it stands in for something else. "
+                                 : " was dropped again: the others explain it. ");
   if (!d.final_fit.test)
     text += "Without a stated noise it is not known whether anything else is missing.";
   else if (d.final_fit.test->model_form_error)
@@ -784,8 +814,12 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
     text += line;
   }
   for (const DroppedEffect& x : d.dropped) {
-    std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n", x.name.c_str(),
-                  chi2_text(d.noise_known).c_str(), x.chi2_increase, x.critical_value);
+    if (x.on_bound)
+      std::snprintf(line, sizeof line, "  backward  - %s: refitted with the later effects it ends on a bound (%.4g)\n",
+                    x.name.c_str(), x.value);
+    else
+      std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n",
+                    x.name.c_str(), chi2_text(d.noise_known).c_str(), x.chi2_increase, x.critical_value);
     text += line;
   }
   if (d.steps.empty()) text += "  no effect accepted\n";

@@ -33,20 +33,6 @@ double to_variable(const EffectCandidate& c, double value) {
   }
   return value;
 }
-/// True when `value` lies on a bound of the candidate's range, to 1e-4 of the range in the
-/// screening variable (the refits stop on a bound, not past it). Exempt are the effects whose
-/// bound is a physical limit, not a stand-in: one added from zero (a spring or a mass, linear
-/// from 0), since at its upper bound a spring holds its node (the truth may be stiffer still),
-/// and a support's flexibility, since at its softest (a thousandth of the structure's own
-/// stiffness there) the support is released in that direction (the truth may be softer still).
-bool on_bound(const EffectCandidate& c, double value) {
-  if (c.variable == EffectCandidate::Variable::Linear && c.lower == 0) return false;
-  if (c.variable == EffectCandidate::Variable::Compliance) return false;
-  const double lo = to_variable(c, c.lower), hi = to_variable(c, c.upper), x = to_variable(c, value);
-  const double tolerance = 1e-4 * std::abs(hi - lo);
-  return std::abs(x - lo) <= tolerance || std::abs(x - hi) <= tolerance;
-}
-
 double from_variable(const EffectCandidate& c, double x) {
   switch (c.variable) {
     case EffectCandidate::Variable::Log:
@@ -401,7 +387,7 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
         ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
     ranked.statistic = statistic;
     ranked.significant = statistic > ranking.critical_value;
-    ranked.at_bound = on_bound(ranked.candidate, ranked.value);
+    ranked.at_bound = ranked.candidate.on_bound(ranked.value);
     ranked.delta_bic = statistic - std::log(static_cast<double>(std::max(1, ranking.num_data)));
     ranked.delta_aic = statistic - 2;
   }
@@ -447,6 +433,14 @@ double standard_error_of(const Problem& problem, const RankedEffect& best, const
 }
 
 }  // namespace
+
+bool EffectCandidate::on_bound(double value) const {
+  if (variable == Variable::Linear && lower == 0) return false;
+  if (variable == Variable::Compliance) return false;
+  const double lo = to_variable(*this, lower), hi = to_variable(*this, upper), x = to_variable(*this, value);
+  const double tolerance = 1e-4 * std::abs(hi - lo);
+  return std::abs(x - lo) <= tolerance || std::abs(x - hi) <= tolerance;
+}
 
 ReducedOptions RankingOptions::default_refit_options() {
   ReducedOptions options;
