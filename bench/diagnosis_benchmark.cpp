@@ -514,7 +514,11 @@ ProblemContext make_context(const std::string& path, const MeasurementNoise& noi
   for (int v = 0; v < model.num_nodes(); ++v)
     if (!ctx.blocks_of_node[v].empty() && !(ctx.fixed[v][0] && ctx.fixed[v][1] && ctx.fixed[v][2])) ctx.free_nodes.push_back(v);
 
-  ctx.candidates = generate_candidates(noise_weighted(ctx.problem, noise));
+  // The cases are drawn from one fixed list, whatever the diagnosis screens (--region-levels), so
+  // that a seed draws the same case under every option: the regions of the finest grid only.
+  CandidateOptions drawn_from;
+  drawn_from.region_levels = 1;
+  ctx.candidates = generate_candidates(noise_weighted(ctx.problem, noise), drawn_from);
   for (size_t k = 0; k < ctx.candidates.size(); ++k) {
     const EffectCandidate& c = ctx.candidates[k];
     if (c.change.kind == ModelChange::Kind::SetProperty && c.change.property != "stiffness_scale" &&
@@ -877,6 +881,7 @@ struct Args {
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
+  int region_levels = CandidateOptions().region_levels;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
@@ -891,10 +896,12 @@ void usage() {
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--neighbour-refits N] [--no-kind-prior]\n"
-      "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N]\n"
+      "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--region-levels N]\n"
       "  --refits, --place-refits, --neighbour-refits, --no-kind-prior: RankingOptions::refits,\n"
       "  place_refits, neighbour_refits and equal_kind_prior (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
+      "  --region-levels: CandidateOptions::region_levels, the grids of block regions screened (the\n"
+      "  cases are drawn from the finest grid's whatever it is);\n"
       "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
       "  is then one core's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
@@ -964,6 +971,7 @@ int main(int argc, char** argv) {
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
+      else if (a == "--region-levels") args.region_levels = std::stoi(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
@@ -1003,9 +1011,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d neighbours%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d neighbours, %d grids of regions%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.neighbour_refits, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.neighbour_refits, args.region_levels, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1096,6 +1104,7 @@ int main(int argc, char** argv) {
           options.ranking.refits = args.refits;
           options.ranking.place_refits = args.place_refits;
           options.ranking.neighbour_refits = args.neighbour_refits;
+          options.candidates.region_levels = args.region_levels;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);

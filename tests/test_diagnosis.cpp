@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include <Eigen/LU>
 #include "modalcal/diagnosis.hpp"
@@ -635,6 +636,48 @@ TEST(Diagnosis, APoissonsRatioNoScaleReproducesIsNamed) {
   EXPECT_EQ(d.steps[0].effect.candidate.name, "base.nu") << report;
   EXPECT_NEAR(d.steps[0].effect.value, 0.15, 3 * d.steps[0].effect.standard_error + 0.01) << report;
   EXPECT_FALSE(d.steps[0].location) << report;  // block-wide
+}
+
+TEST(EffectCandidates, RegionsComeOnGridsTwiceAsCoarseAsTheOneBefore) {
+  // A bar twelve elements long, one across: cubes of 3 element sizes make four regions along it,
+  // cubes of 6 two (each the union of two of the first), cubes of 12 hold the whole bar (none).
+  const Problem bar = LoadProblem(WriteTempFile("bar.yaml", R"(
+mesh:
+  element: hex8
+  element_size: 1
+  boxes:
+    - {block: bar, min: [0, 0, 0], max: [12, 1, 1]}
+blocks:
+  bar: {E: 1000, nu: 0.3, density: 1.0}
+node_sets:
+  root: {box: {min: [0, 0, 0], max: [0, 1, 1]}}
+fixed:
+  - {node_set: root, dofs: [x, y, z]}
+parameters:
+  E_bar: {targets: [bar.E], initial: 900, lower: 100, upper: 1e4, scaling: log, truth: 1000}
+sensors:
+  - {at: [12, 0, 0], directions: [y, z]}
+measured:
+  synthetic: {modes: [1, 2, 3], shapes: true}
+)"));
+  auto region_sizes = [&](int levels) {
+    CandidateOptions options;
+    options.region_levels = levels;
+    std::multiset<size_t> sizes;
+    for (const EffectCandidate& c : generate_candidates(bar, options))
+      if (c.change.kind == ModelChange::Kind::AddRegion && c.change.property == "stiffness_scale")
+        sizes.insert(region_elements(bar.model, c.change).second.size());
+    return sizes;
+  };
+  EXPECT_EQ(region_sizes(1), (std::multiset<size_t>{3, 3, 3, 3}));
+  EXPECT_EQ(region_sizes(2), (std::multiset<size_t>{3, 3, 3, 3, 6, 6}));
+  EXPECT_EQ(region_sizes(3), region_sizes(2));  // the third grid's one cube holds the whole bar
+  EXPECT_EQ(CandidateOptions().region_levels, 3);
+  CandidateOptions too_many;
+  too_many.region_levels = 7;
+  std::string error;
+  EXPECT_FALSE(too_many.IsValid(&error));
+  EXPECT_NE(error.find("region_levels"), std::string::npos) << error;
 }
 
 TEST(Diagnosis, TheRegionScreenFindsAStifferPartOfABlock) {

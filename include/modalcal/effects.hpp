@@ -138,10 +138,15 @@ struct MODALCAL_EXPORT CandidateOptions {
   bool spatial = true;
   /// Stiffness and mass scales of the regions of every block: the block's element centroids
   /// binned in a grid of cubes `region_elements` element sizes across (aligned with the block's
-  /// lowest corner), one region per non-empty cube, for blocks that span more than one cube.
+  /// lowest corner), one region per non-empty cube, for blocks that span more than one cube; and
+  /// the same on grids twice, four times, ... as coarse (`region_levels` grids in all), since a
+  /// changed part of a block has no given size. A coarse cube holding the same elements as a finer
+  /// one is not screened twice.
   bool regions = true;
-  /// A region's size in element sizes. Range: [1, 1000].
+  /// The finest regions' size in element sizes. Range: [1, 1000].
   double region_elements = 3;
+  /// How many grids of regions, each twice as coarse as the one before. Range: [1, 6].
+  int region_levels = 3;
   /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;

@@ -38,6 +38,7 @@ struct DiagnoseArgs {
   bool no_exchange = false;
   std::vector<std::string> add;
   double region_size = CandidateOptions().region_elements;
+  int region_levels = CandidateOptions().region_levels;
   int jobs = 0;  // refits at a time in threads; 0: one per core
   std::string json, vtu, plot, map, write_problem;
   bool quiet = false;
@@ -392,6 +393,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
   options.candidates.region_elements = args.region_size;
+  options.candidates.region_levels = args.region_levels;
   options.backward = !args.no_backward;
   options.exchange = !args.no_exchange;
   farm.set_threads(threads_for_jobs(args.jobs));
@@ -557,6 +559,9 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "size of the block regions screened, in element sizes (default 3)")
       ->check(finite_number())
       ->check(CLI::Range(1.0, 1000.0));
+  cmd->add_option("--region-levels", args->region_levels,
+                  "grids of block regions screened, each twice as coarse as the one before (default 3)")
+      ->check(CLI::Range(1, 6));
   cmd->add_option("--jobs", args->jobs,
                   "refits run at a time, each in a thread (default: one per core; 1: one after another). The "
                   "results do not depend on it. In an MPI job the ranks share the refits instead")

@@ -350,9 +350,13 @@ class CandidateFactory {
           add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
     }
     if (options_.regions)
-      for (size_t b = 0; b < model_.blocks.size(); ++b)
-        for (const std::string& place : region_places(static_cast<int>(b)))
-          for (const char* property : {"stiffness_scale", "mass_scale"}) add("region@" + place + ":" + property);
+      for (size_t b = 0; b < model_.blocks.size(); ++b) {
+        std::set<std::string> places;
+        for (int level = 0; level < options_.region_levels; ++level)
+          for (const std::string& place : region_places(static_cast<int>(b), options_.region_elements * (1 << level)))
+            if (places.insert(place).second)
+              for (const char* property : {"stiffness_scale", "mass_scale"}) add("region@" + place + ":" + property);
+      }
     if (options_.between_parts) append_between_parts(fixed, &changes);
     if (options_.spatial)
       for (int v : surface_and_interface_nodes(model_, fixed)) {
@@ -423,14 +427,14 @@ class CandidateFactory {
   const Joint* model_joint(const std::string& name) const { return find_joint(model_, name); }
 
   /// "BLOCK/[lo]/[hi]" for each region of block b: its element centroids binned in cubes of
-  /// region_elements element sizes, each box the tight bounds of one cube's centroids (so that
-  /// no centroid of another cube lies in it); none when one cube holds the whole block.
-  std::vector<std::string> region_places(int b) const {
+  /// `elements` element sizes, each box the tight bounds of one cube's centroids (so that no
+  /// centroid of another cube lies in it); none when one cube holds the whole block.
+  std::vector<std::string> region_places(int b, double elements) const {
     const ElementBlock& block = model_.blocks[b];
     const std::vector<Vec3> centroids = element_centroids(model_, block);
     Vec3 lowest = Vec3::Constant(std::numeric_limits<double>::infinity());
     for (const Vec3& c : centroids) lowest = lowest.cwiseMin(c);
-    const double h = scales_.block_size(b), cell = options_.region_elements * h;
+    const double h = scales_.block_size(b), cell = elements * h;
     lowest.array() -= 0.5 * h;  // about the block's lowest corner: cube faces between centroids
     std::map<std::array<long, 3>, std::pair<Vec3, Vec3>> boxes;  // cube -> bounds of its centroids
     for (const Vec3& c : centroids) {
@@ -495,6 +499,8 @@ bool CandidateOptions::IsValid(std::string* error) const {
   if (!(gap_factor > 0)) return bad("gap_factor = " + std::to_string(gap_factor) + ": must be > 0");
   if (!(region_elements >= 1 && region_elements <= 1000))
     return bad("region_elements = " + std::to_string(region_elements) + ": must be in [1, 1000]");
+  if (!(region_levels >= 1 && region_levels <= 6))
+    return bad("region_levels = " + std::to_string(region_levels) + ": must be in [1, 6]");
   if (!(rigid_support_factor >= 10 && rigid_support_factor <= 1e8))
     return bad("rigid_support_factor = " + std::to_string(rigid_support_factor) + ": must be in [10, 1e8]");
   return true;
