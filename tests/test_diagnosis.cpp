@@ -261,6 +261,27 @@ TEST(ChiSquare, CriticalValuesAndNoiseWeights) {
   EXPECT_THROW(noise_weighted(problem, MeasurementNoise{0, 0.02, 1}), std::invalid_argument);
 }
 
+TEST(EffectRanking, ACandidateThatDoesNotApplyIsSetAsideAndTheRestScreened) {
+  // The screen applies every candidate at once; one that does not apply to the model (here one
+  // naming a block the model lacks) must not sink the others: it is set aside with the reason.
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  EffectCandidate stray = candidates.front();
+  stray.name = "no_such_block.stiffness_scale";
+  stray.change = parse_model_change("no_such_block.stiffness_scale=1");
+  candidates.insert(candidates.begin() + 1, stray);
+  RankingOptions options;
+  options.refits = 1;
+  const EffectRanking ranking = rank_effects(problem, problem.truth_values(), candidates, options);
+  const auto aside = std::find_if(ranking.set_aside.begin(), ranking.set_aside.end(),
+                                  [&](const auto& s) { return s.first == stray.name; });
+  ASSERT_NE(aside, ranking.set_aside.end());
+  EXPECT_NE(aside->second.find("could not be applied"), std::string::npos) << aside->second;
+  EXPECT_EQ(ranking.screened + ranking.set_aside.size(), candidates.size());
+  ASSERT_FALSE(ranking.effects.empty());
+  EXPECT_EQ(ranking.effects.front().candidate.name, "j.krx");
+}
+
 TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
   Objective objective(problem);

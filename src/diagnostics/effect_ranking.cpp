@@ -186,20 +186,14 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   return outcome.str();
 }
 
-/// The candidates that apply to the model (at their screen values, all at once), the others set
-/// aside with the reason.
+/// The candidates that apply to the model (at their screen values, one after the other), the
+/// others set aside with the reason.
 std::vector<EffectCandidate> applicable(const Problem& problem, const std::vector<EffectCandidate>& candidates,
                                         EffectRanking* ranking) {
   std::vector<ModelChange> changes;
   for (const EffectCandidate& c : candidates) {
     changes.push_back(c.change);
     changes.back().value = c.screen_value;
-  }
-  try {  // usually all of them at once; else one at a time, to set aside those that fail
-    Model all = problem.model;
-    apply_model_changes(&all, changes);
-    return candidates;
-  } catch (const std::invalid_argument&) {
   }
   std::vector<EffectCandidate> usable;
   Model trial = problem.model;
@@ -508,8 +502,16 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   ranking.num_data = before.data;
 
   // The screen: every candidate's first-order prediction from one Jacobian.
-  const std::vector<EffectCandidate> usable = applicable(problem, candidates, &ranking);
-  ScreenJacobian jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
+  // Usually every candidate applies, and the screen's model is the one check; when one does not,
+  // the candidates are tried apart and those that fail set aside.
+  std::vector<EffectCandidate> usable = candidates;
+  ScreenJacobian jacobian;
+  try {
+    jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
+  } catch (const std::invalid_argument&) {
+    usable = applicable(problem, candidates, &ranking);
+    jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
+  }
   std::vector<RankedEffect> screened = predict(problem, calibrated, r, usable, jacobian, &ranking);
   ranking.screened = static_cast<int>(screened.size());
   set_kind_penalties(&screened, options.equal_kind_prior);
