@@ -971,7 +971,12 @@ int main(int argc, char** argv) {
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
-      else if (a == "--region-levels") args.region_levels = std::stoi(next());
+      else if (a == "--region-levels") {
+        CandidateOptions candidates;
+        candidates.region_levels = args.region_levels = std::stoi(next());
+        std::string why;
+        if (!candidates.IsValid(&why)) throw std::invalid_argument("--region-levels: " + why);
+      }
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
@@ -1185,7 +1190,8 @@ int main(int argc, char** argv) {
           for (const DiagnosisStep& x : d.exchanges)
             o.steps_json.push_back({{"exchanged", x.replaces}, {"for", x.effect.candidate.name}, {"score", x.effect.score()},
                                     {"replaced_score", x.replaced_score}});
-          for (const DroppedEffect& x : d.dropped) o.steps_json.push_back({{"dropped", x.name}, {"chi2_increase", x.chi2_increase}});
+          for (const DroppedEffect& x : d.dropped)
+            o.steps_json.push_back({{"dropped", x.name}, {"chi2_increase", x.chi2_increase}, {"on_bound", x.on_bound}});
         }
       } catch (const std::exception& e) {
         c.error = e.what();

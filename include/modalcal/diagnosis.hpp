@@ -159,6 +159,9 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// effect's score S in the same screen; empty and NaN for a forward step.
   std::string replaces;
   double replaced_score = NAN;
+  /// The replaced effect had gone to a bound of its range (EffectCandidate::on_bound): any
+  /// acceptable effect replaces it, whatever the scores.
+  bool replaced_on_bound = false;
 };
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated
@@ -192,10 +195,11 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   /// When significant, the loop runs twice, on the data corrected for the mesh and on the data as
   /// measured, and the one whose end explains the data better is kept: each end's score is
   /// -2 ln L up to a common constant (its X² plus the log of the variance the allowance adds to
-  /// each frequency, sum ln(1 + allowance²/noise²), on the corrected data) plus the step's
-  /// critical value per kept effect. A physical effect that moves the modes as the mesh does is
-  /// thus not taken for the mesh when the data say otherwise, and the mesh not for a physical
-  /// effect. NaN when the loop ran once.
+  /// each weighted frequency, sum ln(1 + allowance²/noise²), on the corrected data) plus the
+  /// step's critical value per kept effect. A physical effect that moves the modes as the mesh
+  /// does is thus not taken for the mesh when the data say otherwise, and the mesh not for a
+  /// physical effect. Both NaN when the loop ran once; score_corrected NaN when the loop on the
+  /// corrected data could not run (the data as measured are then kept).
   double score_corrected = NAN, score_as_measured = NAN;
   bool corrected = false;     ///< the loop ran on the corrected data (and its end was kept)
 };

@@ -234,6 +234,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
     nlohmann::json e = step_json(problem, x);
     e["replaces"] = x.replaces;
     e["replaced_score"] = json_number(x.replaced_score);
+    e["replaced_on_bound"] = x.replaced_on_bound;
     json["exchanges"].push_back(e);
   }
   json["accepted"] = d.accepted();

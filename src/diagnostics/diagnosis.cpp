@@ -328,11 +328,13 @@ double effect_value(const LoopState& state, size_t k) {
   return state.parameters[state.parameters.size() - static_cast<Eigen::Index>(state.effects.size() - k)];
 }
 
-/// The first effect the loop accepted (not one the model started with) that the later refits
-/// moved onto a bound of its range; effects.size() when none is.
+const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name);
+
+/// The first effect a step accepted (not one the model started with) that the later refits moved
+/// onto a bound of its range; effects.size() when none is.
 size_t accepted_on_bound(const Diagnosis& d, const LoopState& state) {
-  for (size_t k = d.started_with.size(); k < state.effects.size(); ++k)
-    if (state.effects[k].on_bound(effect_value(state, k))) return k;
+  for (size_t k = 0; k < state.effects.size(); ++k)
+    if (step_that_added(d, state.effects[k].name) && state.effects[k].on_bound(effect_value(state, k))) return k;
   return state.effects.size();
 }
 
@@ -400,13 +402,14 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
     const RankedEffect* best = acceptable(ranking);
     // One the later refits moved onto a bound stands in for something else: any acceptable
     // effect replaces it.
-    const double incumbent_score = state->effects[k].on_bound(effect_value(*state, k))
-                                       ? -INFINITY
-                                       : lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
-    if (!best || best->candidate.name == state->effects[k].name || !(best->score() > incumbent_score)) continue;
+    const bool on_bound = state->effects[k].on_bound(effect_value(*state, k));
+    const double incumbent_score = lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
+    if (!best || best->candidate.name == state->effects[k].name || !(on_bound || best->score() > incumbent_score))
+      continue;
     DiagnosisStep exchange = step_accepting(ranking, without.problem.model, incumbent->step);
     exchange.replaces = state->effects[k].name;
     exchange.replaced_score = incumbent_score;
+    exchange.replaced_on_bound = on_bound;
     // best->parameters are without's, then the new effect's value: it takes effect k's place.
     std::vector<EffectCandidate> effects = state->effects;
     effects[k] = best->candidate;
@@ -436,14 +439,22 @@ std::string discretization_text(const Diagnosis& d) {
   for (const DiscretizationEstimate::Mode& m : est.per_mode)
     largest = std::max(largest, std::abs(m.shift_percent));
   char text[600];
-  if (!est.corrected && est.score_as_measured < est.score_corrected) {
+  if (!est.corrected && std::isfinite(est.score_as_measured) && !std::isfinite(est.score_corrected)) {
     std::snprintf(text, sizeof text,
                   "The mesh's discretization error (up to %.3g %% in frequency) would account for %.4g of the "
-                  "chi-square (more than %.3g), but the effects below explain the data as measured better than the "
-                  "mesh does (-2 ln L plus %.3g per effect: %.4g against %.4g corrected for the mesh); the diagnosis "
-                  "is of the data as measured. ",
-                  largest, est.chi2_explained, est.critical_value, d.ranking.critical_value, est.score_as_measured,
-                  est.score_corrected);
+                  "chi-square (more than %.3g), but the loop on the data corrected for it could not run; the "
+                  "diagnosis is of the data as measured. ",
+                  largest, est.chi2_explained, est.critical_value);
+    return text;
+  }
+  if (!est.corrected && std::isfinite(est.score_as_measured)) {
+    std::snprintf(text, sizeof text,
+                  "The mesh's discretization error (up to %.3g %% in frequency) would account for %.4g of the "
+                  "chi-square (more than %.3g), but the data as measured are explained %s than corrected for the "
+                  "mesh (-2 ln L plus %.3g per effect: %.4g against %.4g); the diagnosis is of the data as measured. ",
+                  largest, est.chi2_explained, est.critical_value,
+                  d.accepted().empty() ? "at least as well" : "better with the effects below", d.ranking.critical_value,
+                  est.score_as_measured, est.score_corrected);
     return text;
   }
   std::snprintf(text, sizeof text,
@@ -636,20 +647,26 @@ void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOpti
 double loop_score(const Problem& data, const Diagnosis& d) {
   const double noise = data.measurement_noise->frequency;
   double score = d.final_fit.statistic;
-  for (const MeasuredMode& m : data.measured) score += std::log1p(m.model_error * m.model_error / (noise * noise));
+  for (const MeasuredMode& m : data.measured)  // the frequencies the fit weighs
+    if (m.weight > 0) score += std::log1p(m.model_error * m.model_error / (noise * noise));
   return score + d.ranking.critical_value * static_cast<double>(d.accepted().size());
 }
 
 /// The loop on the data corrected for the mesh (`corrected`, from check_the_mesh()) and on the
-/// data as measured; d becomes the one whose end scores lower, the data as measured on a tie.
+/// data as measured; d becomes the one whose end scores lower, the data as measured on a tie or
+/// when the corrected data's loop cannot run (its score is then NaN).
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
   run_loop(problem, weighted_if(d->noise_known, problem), options, &as_measured);
-  const Problem fitted = weighted_if(d->noise_known, corrected.first);
-  calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
-  run_loop(problem, fitted, options, d);
-  const double score_corrected = loop_score(corrected.first, *d);
+  double score_corrected = NAN;
+  try {  // a loop on the corrected data that cannot run leaves the one on the data as measured
+    const Problem fitted = weighted_if(d->noise_known, corrected.first);
+    calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
+    run_loop(problem, fitted, options, d);
+    score_corrected = loop_score(corrected.first, *d);
+  } catch (const std::runtime_error&) {
+  }
   const double score_as_measured = loop_score(problem, as_measured);
   if (!(score_corrected < score_as_measured)) *d = std::move(as_measured);
   d->discretization->corrected = score_corrected < score_as_measured;
@@ -808,9 +825,13 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
     }
   }
   for (const DiagnosisStep& x : d.exchanges) {
-    std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
-                  x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
-                  x.replaced_score);
+    if (x.replaced_on_bound)
+      std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, the first ends on a bound\n",
+                    x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value);
+    else
+      std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
+                    x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
+                    x.replaced_score);
     text += line;
   }
   for (const DroppedEffect& x : d.dropped) {

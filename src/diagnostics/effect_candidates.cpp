@@ -350,13 +350,7 @@ class CandidateFactory {
           add("point_mass@" + node_place(model_, s.node) + ":mass", "a sensor's position");
     }
     if (options_.regions)
-      for (size_t b = 0; b < model_.blocks.size(); ++b) {
-        std::set<std::string> places;
-        for (int level = 0; level < options_.region_levels; ++level)
-          for (const std::string& place : region_places(static_cast<int>(b), options_.region_elements * (1 << level)))
-            if (places.insert(place).second)
-              for (const char* property : {"stiffness_scale", "mass_scale"}) add("region@" + place + ":" + property);
-      }
+      for (const std::string& text : region_changes()) add(text);
     if (options_.between_parts) append_between_parts(fixed, &changes);
     if (options_.spatial)
       for (int v : surface_and_interface_nodes(model_, fixed)) {
@@ -426,12 +420,28 @@ class CandidateFactory {
 
   const Joint* model_joint(const std::string& name) const { return find_joint(model_, name); }
 
-  /// "BLOCK/[lo]/[hi]" for each region of block b: its element centroids binned in cubes of
-  /// `elements` element sizes, each box the tight bounds of one cube's centroids (so that no
-  /// centroid of another cube lies in it); none when one cube holds the whole block.
-  std::vector<std::string> region_places(int b, double elements) const {
+  /// The stiffness and mass scale changes of every block's regions on each grid
+  /// (CandidateOptions::region_levels), a box that a coarser grid repeats screened once.
+  std::vector<std::string> region_changes() const {
+    std::vector<std::string> changes;
+    for (size_t b = 0; b < model_.blocks.size(); ++b) {
+      const std::vector<Vec3> centroids = element_centroids(model_, model_.blocks[b]);
+      std::set<std::string> places;
+      for (int level = 0; level < options_.region_levels; ++level)
+        for (const std::string& place :
+             region_places(static_cast<int>(b), centroids, options_.region_elements * (1 << level)))
+          if (places.insert(place).second)
+            for (const char* property : {"stiffness_scale", "mass_scale"})
+              changes.push_back("region@" + place + ":" + property);
+    }
+    return changes;
+  }
+
+  /// "BLOCK/[lo]/[hi]" for each region of block b (element `centroids`): the centroids binned in
+  /// cubes of `elements` element sizes, each box the tight bounds of one cube's centroids (so that
+  /// no centroid of another cube lies in it); none when one cube holds the whole block.
+  std::vector<std::string> region_places(int b, const std::vector<Vec3>& centroids, double elements) const {
     const ElementBlock& block = model_.blocks[b];
-    const std::vector<Vec3> centroids = element_centroids(model_, block);
     Vec3 lowest = Vec3::Constant(std::numeric_limits<double>::infinity());
     for (const Vec3& c : centroids) lowest = lowest.cwiseMin(c);
     const double h = scales_.block_size(b), cell = elements * h;

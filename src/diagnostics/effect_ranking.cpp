@@ -186,8 +186,9 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   return outcome.str();
 }
 
-/// The candidates that apply to the model (at their screen values, one after the other), the
-/// others set aside with the reason.
+/// The candidates that apply to the model (at their screen values, one after the other to the
+/// same model, so each is checked with the ones before it: of two that clash, the later is set
+/// aside), the others set aside with the reason.
 std::vector<EffectCandidate> applicable(const Problem& problem, const std::vector<EffectCandidate>& candidates,
                                         EffectRanking* ranking) {
   std::vector<ModelChange> changes;
@@ -506,9 +507,13 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // the candidates are tried apart and those that fail set aside.
   std::vector<EffectCandidate> usable = candidates;
   ScreenJacobian jacobian;
+  const size_t set_aside_before = ranking.set_aside.size();
+  const int solves_before = ranking.linear_solves;
   try {
     jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
-  } catch (const std::invalid_argument&) {
+  } catch (const std::invalid_argument&) {  // other errors come back from the second try
+    ranking.set_aside.resize(set_aside_before);
+    ranking.linear_solves = solves_before;
     usable = applicable(problem, candidates, &ranking);
     jacobian = screen_jacobian(problem, calibrated, usable, r.size(), options, &ranking);
   }
