@@ -87,6 +87,15 @@ Problem WithHiddenEffect(const std::vector<std::string>& changes, std::uint64_t 
   return problem;
 }
 
+/// The assembly on a mesh 1.5 times finer with `problem`'s data, as diagnose's --mesh-check loads it.
+Problem FinerAssembly(const Problem& problem) {
+  Problem finer = LoadProblem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
+  finer.measured = problem.measured;
+  finer.synthetic.reset();
+  finer.measurement_noise = problem.measurement_noise;
+  return finer;
+}
+
 const EffectCandidate* Find(const std::vector<EffectCandidate>& candidates, const std::string& name) {
   const auto it = std::find_if(candidates.begin(), candidates.end(), [&](const auto& c) { return c.name == name; });
   return it == candidates.end() ? nullptr : &*it;
@@ -842,10 +851,7 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   problem.measured = data.modes;
   problem.synthetic.reset();
   problem.measurement_noise = data.noise;
-  Problem finer = LoadProblem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
-  finer.measured = problem.measured;
-  finer.synthetic.reset();
-  finer.measurement_noise = problem.measurement_noise;
+  const Problem finer = FinerAssembly(problem);
   DiagnosisOptions options;
   options.finer_mesh = &finer;
   const Diagnosis d = diagnose(problem, problem.initial_values(), options);
@@ -873,10 +879,7 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   // pad's scale; on the data as measured the pad alone explains everything. The loop runs on both
   // and keeps the data as measured, and does not say to refine the mesh first.
   const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.5"}, 3);
-  Problem finer = LoadProblem(WriteTempFile("finer.yaml", kAssembly), LoadOptions{1.5});
-  finer.measured = problem.measured;
-  finer.synthetic.reset();
-  finer.measurement_noise = problem.measurement_noise;
+  const Problem finer = FinerAssembly(problem);
   DiagnosisOptions options;
   options.finer_mesh = &finer;
   const Diagnosis d = diagnose(problem, problem.initial_values(), options);
