@@ -96,6 +96,17 @@ Problem FinerAssembly(const Problem& problem) {
   return finer;
 }
 
+/// The diagnosis of `problem` (the assembly) with the discretization estimate on a mesh 1.5 times
+/// finer, and its report.
+Diagnosis DiagnoseWithMeshCheck(const Problem& problem, std::string* report) {
+  const Problem finer = FinerAssembly(problem);
+  DiagnosisOptions options;
+  options.finer_mesh = &finer;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
+  *report = format_diagnosis(problem, d);
+  return d;
+}
+
 const EffectCandidate* Find(const std::vector<EffectCandidate>& candidates, const std::string& name) {
   const auto it = std::find_if(candidates.begin(), candidates.end(), [&](const auto& c) { return c.name == name; });
   return it == candidates.end() ? nullptr : &*it;
@@ -851,11 +862,8 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   problem.measured = data.modes;
   problem.synthetic.reset();
   problem.measurement_noise = data.noise;
-  const Problem finer = FinerAssembly(problem);
-  DiagnosisOptions options;
-  options.finer_mesh = &finer;
-  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
-  const std::string report = format_diagnosis(problem, d);
+  std::string report;
+  const Diagnosis d = DiagnoseWithMeshCheck(problem, &report);
   ASSERT_TRUE(d.discretization) << report;
   EXPECT_EQ(d.discretization->per_mode.size(), problem.measured.size());
   // Both meshes come from an element size: r is the ratio of their refinements, and extrapolation
@@ -879,11 +887,8 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   // pad's scale; on the data as measured the pad alone explains everything. The loop runs on both
   // and keeps the data as measured, and does not say to refine the mesh first.
   const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.5"}, 3);
-  const Problem finer = FinerAssembly(problem);
-  DiagnosisOptions options;
-  options.finer_mesh = &finer;
-  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
-  const std::string report = format_diagnosis(problem, d);
+  std::string report;
+  const Diagnosis d = DiagnoseWithMeshCheck(problem, &report);
   ASSERT_TRUE(d.discretization) << report;
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_FALSE(d.discretization->corrected) << report;
