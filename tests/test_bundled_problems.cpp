@@ -79,6 +79,22 @@ TEST(BundledProblems, PortalFrameLbfgsRecoversTruthFromInitialPoint) {
   ExpectLbfgsRecoversTruth(LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml")));
 }
 
+// The ten-mode variant changes only what is measured: the same parameters and sensors, modes
+// 1-10 paired by their shapes (6-9 lie within 3-7 % of each other), and the truth recovered.
+TEST(BundledProblems, PortalFrameWithTenModesMeasuresModesOneToTen) {
+  const Problem six = LoadProblem(SourcePath("problems/portal-frame/synthetic.yaml"));
+  const Problem ten = LoadProblem(SourcePath("problems/portal-frame/synthetic-10-modes.yaml"));
+  ASSERT_EQ(ten.parameters.size(), six.parameters.size());
+  EXPECT_EQ(ten.sensors.size(), six.sensors.size());
+  ASSERT_EQ(ten.measured.size(), 10u);
+  for (const MeasuredMode& m : ten.measured) {
+    EXPECT_EQ(m.shape.size(), 36);
+    EXPECT_EQ(m.pairing.kind, PairingRule::Kind::Mac);
+  }
+  ExpectStudyReady(ten);
+  ExpectLbfgsRecoversTruth(ten);
+}
+
 TEST(BundledProblems, ProppedCantileverIsAnEigenvalueOnlyStudy) {
   const Problem problem = LoadProblem(SourcePath("problems/propped-cantilever/synthetic.yaml"));
   ASSERT_EQ(problem.parameters.size(), 3u);
