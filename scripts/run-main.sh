@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's first command: installs what is missing, builds, and runs the main job on the
-# bundled LFU problem (full space, Ipopt on the structured KKT solver: about 20 s and
-# 2 GB on 2 cores).
+# bundled LFU problem (full space, Ipopt on the structured KKT solver: 20-45 s and
+# 1.6 GB on 2 cores, depending on the CPU).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
