@@ -777,7 +777,9 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
   // 0.2 each, half an element off); screened again with the other in the model, each is at its
   // node with about its value.
   const Problem hidden = WithHiddenEffect({"point_mass@[1,0,0]:mass=0.05", "point_mass@[1,1,1.5]:mass=0.05"}, 54);
-  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  DiagnosisOptions greedy;  // the exchange pass on the greedy path: no other first step tried
+  greedy.first_step_alternatives = 0;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), greedy);
   const std::string report = format_diagnosis(hidden, d);
   ASSERT_FALSE(d.exchanges.empty()) << report;
   const std::vector<std::string> accepted = d.accepted();
@@ -803,6 +805,60 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
   EXPECT_NE(report.find("exchange  "), std::string::npos) << report;
+}
+
+TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLowest) {
+  // The two point masses of the exchange test, without the exchange pass: the greedy first step
+  // takes a mass that stands for both. Walked again from the first screen's next-best effects,
+  // the kept path is the one that ends lowest in chi-square plus a critical value per effect.
+  const Problem hidden = WithHiddenEffect({"point_mass@[1,0,0]:mass=0.05", "point_mass@[1,1,1.5]:mass=0.05"}, 54);
+  DiagnosisOptions options;
+  options.exchange = false;
+  options.first_step_alternatives = 0;
+  const Diagnosis greedy = diagnose(hidden, hidden.initial_values(), options);
+  options.first_step_alternatives = 2;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_GE(d.steps.size(), 1u) << report;
+  ASSERT_GE(d.paths.size(), 2u) << report;
+  ASSERT_LE(d.paths.size(), 3u) << report;
+  // The first path is the greedy one, as diagnosed without alternatives.
+  EXPECT_EQ(d.paths.front().first, greedy.steps.front().effect.candidate.name);
+  EXPECT_CLOSE(d.paths.front().chi2_final, greedy.final_fit.statistic, 1e-6);
+  const double critical = d.ranking.critical_value;
+  int kept = 0;
+  for (const DiagnosisPath& path : d.paths) {
+    EXPECT_CLOSE(path.score, path.chi2_final + critical * static_cast<double>(path.accepted.size()), 1e-12);
+    if (!path.kept) continue;
+    ++kept;
+    EXPECT_EQ(path.first, d.steps.front().effect.candidate.name);
+    EXPECT_EQ(path.accepted, d.accepted());
+    EXPECT_CLOSE(path.chi2_final, d.final_fit.statistic, 1e-12);
+  }
+  EXPECT_EQ(kept, 1) << report;
+  // Lowest among the paths that kept other effects (one that ends at the same effects differs
+  // only in rounding, and the greedy path stays).
+  auto sorted = [](std::vector<std::string> names) {
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  for (const DiagnosisPath& path : d.paths)
+    for (const DiagnosisPath& kept_path : d.paths) {
+      if (kept_path.kept && sorted(kept_path.accepted) != sorted(path.accepted)) {
+        EXPECT_LE(kept_path.score, path.score) << path.first;
+      }
+    }
+  // Each alternative was a significant refit of the first screen, apart from the greedy one.
+  for (size_t k = 1; k < d.paths.size(); ++k) {
+    const int rank = rank_of(d.ranking, d.paths[k].first);
+    ASSERT_GT(rank, 1) << d.paths[k].first;
+    EXPECT_TRUE(d.ranking.effects[rank - 1].acceptable()) << d.paths[k].first;
+    EXPECT_FALSE(d.ranking.effects[rank - 1].candidate.neighbour_of(d.ranking.effects.front().candidate));
+  }
+  // The recommendation is the kept path's first effect, and the report lists the paths.
+  ASSERT_GE(d.recommended, 0) << report;
+  EXPECT_EQ(d.ranking.effects[d.recommended].candidate.name, d.steps.front().effect.candidate.name);
+  EXPECT_NE(report.find("the loop walked from the first step's next-best effects too"), std::string::npos) << report;
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
@@ -911,7 +967,9 @@ TEST(Diagnosis, AnEffectTheLaterRefitsPutOnABoundIsDroppedAsAStandIn) {
   region.lower = 0.5;
   region.upper = 0.9;
   problem.effects.push_back(region);
-  const Diagnosis d = diagnose(problem, problem.initial_values());
+  DiagnosisOptions greedy;  // the backward pass on the greedy path: no other first step tried
+  greedy.first_step_alternatives = 0;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), greedy);
   const std::string report = format_diagnosis(problem, d);
   ASSERT_FALSE(d.steps.empty()) << report;
   EXPECT_EQ(d.steps.front().effect.candidate.name, region.effect) << report;

@@ -89,6 +89,13 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
   /// significant at the stated level once the others are in the model.
   bool backward = true;
+  /// When the loop took two or more steps or ends with a residual larger than the noise, walk it
+  /// again from each of the first step's next-best significant refits (at most this many, none a
+  /// neighbour of the first or of another), and keep the path that ends lowest in chi-square plus
+  /// the first step's critical value per kept effect (Diagnosis::paths). With several effects at
+  /// once the best single effect may stand in for them together, and one exchange at a time does
+  /// not undo that. Each path costs a loop. Range: >= 0 (0: the greedy path only).
+  int first_step_alternatives = 2;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options).
   ReducedOptions calibration = default_calibration_options();
@@ -215,6 +222,17 @@ struct MODALCAL_EXPORT DroppedEffect {
   double value = NAN;         ///< its value when dropped
 };
 
+/// One path through the loop (DiagnosisOptions::first_step_alternatives): the effect its first
+/// step took, what its backward pass kept, and where it ended.
+struct MODALCAL_EXPORT DiagnosisPath {
+  std::string first;                  ///< the first step's effect
+  std::vector<std::string> accepted;  ///< the effects kept at its end
+  double chi2_final = 0;              ///< X^2 at its end
+  /// chi2_final plus the first step's critical value per kept effect: the paths' common measure.
+  double score = 0;
+  bool kept = false;  ///< the diagnosis is this path's
+};
+
 struct MODALCAL_EXPORT Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
@@ -240,6 +258,9 @@ struct MODALCAL_EXPORT Diagnosis {
   /// every other effect in.
   std::vector<DiagnosisStep> exchanges;
   std::vector<DroppedEffect> dropped;     ///< by the backward pass
+  /// The paths walked when the first step's alternatives were tried, the first ranking's best
+  /// effect's first; empty when only that one was.
+  std::vector<DiagnosisPath> paths;
   /// The effects kept by the backward pass: started_with's, then the accepted ones.
   std::vector<EffectCandidate> effects;
   /// The final parameters: the problem's, then one value per entry of `effects`.

@@ -33,6 +33,7 @@ struct DiagnoseArgs {
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
+  int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
   double mesh_check = 1.5;
   bool no_backward = false;
   bool no_exchange = false;
@@ -245,6 +246,13 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
                                {"critical_value", x.critical_value},
                                {"on_bound", x.on_bound},
                                {"value", json_number(x.value)}});
+  json["paths"] = nlohmann::json::array();
+  for (const DiagnosisPath& x : d.paths)
+    json["paths"].push_back({{"first", x.first},
+                             {"accepted", x.accepted},
+                             {"chi2_final", x.chi2_final},
+                             {"score", x.score},
+                             {"kept", x.kept}});
   json["started_with"] = nlohmann::json::array();
   for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
   json["residual_final"] = {{"statistic", d.final_fit.statistic},
@@ -393,6 +401,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
+  options.first_step_alternatives = args.first_step_alternatives;
   options.candidates.region_elements = args.region_size;
   options.candidates.region_levels = args.region_levels;
   options.backward = !args.no_backward;
@@ -537,6 +546,11 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")
       ->check(CLI::Range(0.0, 4.0));
+  cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
+                  "when the loop takes two or more steps or ends above the noise, walk it again from this many of "
+                  "the first step's next-best effects and keep the path that ends lowest (default " +
+                      std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
+      ->check(non_negative_number());
   cmd->add_flag("--no-exchange", args->no_exchange,
                 "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
   cmd->add_flag("--no-backward", args->no_backward,

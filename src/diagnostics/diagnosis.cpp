@@ -118,6 +118,10 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
     if (error) *error = "max_steps = " + std::to_string(max_steps) + ": must be >= 0";
     return false;
   }
+  if (first_step_alternatives < 0) {
+    if (error) *error = "first_step_alternatives = " + std::to_string(first_step_alternatives) + ": must be >= 0";
+    return false;
+  }
   return true;
 }
 
@@ -142,12 +146,19 @@ LoopState make_state(const Problem& fitted, const std::vector<EffectCandidate>& 
 }
 
 /// Calibrates `fitted` with `effects` added, from `p` (the problem's parameters, then each
-/// effect's value): the calibrated values, or nullopt when the calibration cannot start.
+/// effect's value): the calibrated values, or nullopt when the calibration cannot start or the
+/// effects do not apply (one sets a property of what another adds, a joint a step added, and the
+/// backward pass or an exchange took that other out).
 std::optional<Vector> calibrate_with(const Problem& fitted, const std::vector<EffectCandidate>& effects,
                                      const Vector& p, const DiagnosisOptions& options) {
   const int np = static_cast<int>(fitted.parameters.size());
   std::vector<double> values(p.data() + np, p.data() + p.size());
-  const Problem with = problem_with_effects(fitted, effects, values);
+  Problem with;
+  try {
+    with = problem_with_effects(fitted, effects, values);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;
+  }
   Objective objective(with, options.ranking.objective);
   const ReducedSummary summary = minimize_reduced(objective, p, options.ranking.refit);
   if (summary.final.size() != p.size()) return std::nullopt;
@@ -219,8 +230,8 @@ const RankedEffect* bound_limited(const Diagnosis& d) {
 
 /// The record of accepting `ranking`'s best effect (acceptable()) as step `number`: its test, its
 /// place in `model` and the alternatives the data hardly tell from it.
-DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, int number) {
-  const RankedEffect& best = ranking.effects.front();
+DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, int number, size_t index = 0) {
+  const RankedEffect& best = ranking.effects[index];
   DiagnosisStep step;
   step.step = number;
   step.effect = best;
@@ -228,8 +239,9 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
   step.screened = ranking.screened;
   step.critical_value = ranking.critical_value;
   step.location = effect_location(model, best.candidate);
-  for (size_t k = 1; k < ranking.effects.size(); ++k) {
+  for (size_t k = 0; k < ranking.effects.size(); ++k) {
     const RankedEffect& other = ranking.effects[k];
+    if (k == index) continue;
     // The data's verdict alone, without the prior over kinds: a likelihood ratio below 20 : 1,
     // or one in the other's favour that the prior overruled. Not the same effect a node or two
     // away (the neighbour refits), which says where, not what.
@@ -256,6 +268,17 @@ void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
   }
 }
 
+/// Accepts the effect `index` of d's last ranking (an acceptable refit) as the next step.
+void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& options, LoopState* state,
+                   Diagnosis* d) {
+  const EffectRanking& ranking = d->rankings.back();
+  d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1, index));
+  add_tell_apart(state->problem, &d->steps.back());
+  std::vector<EffectCandidate> effects = state->effects;
+  effects.push_back(ranking.effects[index].candidate);
+  *state = make_state(fitted, effects, ranking.effects[index].parameters, options.test);
+}
+
 /// One forward step: screens the candidates of the model as it now is and accepts the best
 /// refit when it is significant. Returns false when nothing was accepted.
 bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
@@ -264,13 +287,8 @@ bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOption
   if (d->rankings.empty()) d->candidates = candidates;
   d->rankings.push_back(rank_effects(state->problem, state->parameters, candidates, options.ranking));
   const EffectRanking& ranking = d->rankings.back();
-  const RankedEffect* best = acceptable(ranking);
-  if (!may_accept || !best) return false;
-  d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1));
-  add_tell_apart(state->problem, &d->steps.back());
-  std::vector<EffectCandidate> effects = state->effects;
-  effects.push_back(best->candidate);
-  *state = make_state(fitted, effects, best->parameters, options.test);
+  if (!may_accept || !acceptable(ranking)) return false;
+  accept_effect(fitted, 0, options, state, d);
   return true;
 }
 
@@ -619,26 +637,88 @@ std::optional<std::pair<Problem, Vector>> check_the_mesh(const Problem& problem,
   return std::make_pair(corrected_for_mesh(problem, est, true), summary.final);
 }
 
-/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
-/// pass, with the first step's localization and map.
-void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
-  const Vector calibrated = d->calibration.final;
-  localize(problem, calibrated, options, d);
-  d->started_with = enabled_candidates(problem, options.candidates);
-  d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
-  LoopState state = starting_state(fitted, d->started_with, calibrated, options);
-  if (!d->started_with.empty()) d->before = state.fit;
-  for (int k = 0; k < std::max(1, options.max_steps); ++k) {
+/// The forward steps from `state` (after the `first` already taken), then the exchange and the
+/// backward pass; d records them and the end.
+void walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, Diagnosis* d) {
+  for (int k = first; k < std::max(1, options.max_steps); ++k) {
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
     if (!forward_step(fitted, &state, options, k < options.max_steps, d)) break;
   }
-  d->ranking = d->rankings.front();
-  d->map = screen_map(problem.model, d->ranking);
   if (options.exchange) exchange_pass(fitted, &state, options, d);
   if (options.backward) backward_pass(fitted, &state, options, d);
   d->effects = state.effects;
   d->final_parameters = state.parameters;
   d->final_fit = state.fit;
+}
+
+/// What a path through the loop ends at: -2 ln L (the chi-square) plus the first step's critical
+/// value per accepted effect kept, as the mesh check weighs its two loops.
+double path_score(const Diagnosis& d) {
+  return d.final_fit.statistic + d.rankings.front().critical_value * static_cast<double>(d.accepted().size());
+}
+
+/// True when a and b kept the same effects: paths that end there differ only in rounding, and
+/// the first one walked (the greedy path) stays.
+bool same_effects(const Diagnosis& a, const Diagnosis& b) {
+  std::vector<std::string> x = a.accepted(), y = b.accepted();
+  std::sort(x.begin(), x.end());
+  std::sort(y.begin(), y.end());
+  return x == y;
+}
+
+/// The record of d's path for Diagnosis::paths.
+DiagnosisPath path_of(const Diagnosis& d) {
+  return {d.steps.front().effect.candidate.name, d.accepted(), d.final_fit.statistic, path_score(d), false};
+}
+
+/// The first ranking's acceptable refits, other than its first, to start another path from: at
+/// most `count`, by score, none a neighbour of one taken before.
+std::vector<size_t> other_first_steps(const EffectRanking& ranking, int count) {
+  std::vector<size_t> chosen;
+  for (size_t k = 1; k < ranking.effects.size() && static_cast<int>(chosen.size()) < count; ++k) {
+    const RankedEffect& r = ranking.effects[k];
+    if (!r.acceptable() || r.candidate.neighbour_of(ranking.effects.front().candidate)) continue;
+    if (std::none_of(chosen.begin(), chosen.end(),
+                     [&](size_t c) { return ranking.effects[c].candidate.neighbour_of(r.candidate); }))
+      chosen.push_back(k);
+  }
+  return chosen;
+}
+
+/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
+/// pass, with the first step's localization and map. When that path took two or more steps or
+/// ended with a residual larger than the noise, the loop is walked again from each of the first
+/// ranking's next-best effects (DiagnosisOptions::first_step_alternatives), and the path that ends
+/// with the lowest score (path_score) is kept: with several effects at once the best single
+/// effect may stand in for them together, and no later step or exchange then leaves it.
+void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  const Vector calibrated = d->calibration.final;
+  localize(problem, calibrated, options, d);
+  d->started_with = enabled_candidates(problem, options.candidates);
+  d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
+  const LoopState start = starting_state(fitted, d->started_with, calibrated, options);
+  if (!d->started_with.empty()) d->before = start.fit;
+  const Diagnosis before_the_loop = *d;
+  walk(fitted, start, 0, options, d);
+  d->ranking = d->rankings.front();
+  d->map = screen_map(problem.model, d->ranking);
+  if (d->steps.empty() || !d->final_fit.test || (d->steps.size() < 2 && consistent_with_noise(d->final_fit))) return;
+  const std::vector<size_t> others = other_first_steps(d->ranking, options.first_step_alternatives);
+  if (others.empty()) return;
+  std::vector<DiagnosisPath> paths = {path_of(*d)};
+  for (size_t index : others) {
+    Diagnosis other = before_the_loop;
+    other.rankings = {d->ranking};
+    other.ranking = d->ranking;
+    other.map = d->map;
+    LoopState state = start;
+    accept_effect(fitted, index, options, &state, &other);
+    walk(fitted, state, 1, options, &other);
+    paths.push_back(path_of(other));
+    if (paths.back().score < path_score(*d) && !same_effects(other, *d)) *d = std::move(other);
+  }
+  for (DiagnosisPath& path : paths) path.kept = path.first == d->steps.front().effect.candidate.name;
+  d->paths = std::move(paths);
 }
 
 /// -2 ln L at the end of d's loop on `data` (unweighted, with a stated noise), up to a constant
@@ -696,7 +776,7 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error ||
                        bound_limited(d) != nullptr;
   if (!d.accepted().empty()) {
-    d.recommended = 0;
+    d.recommended = rank_of(d.ranking, d.steps.front().effect.candidate.name) - 1;
     d.after = d.final_fit;
   }
   d.recommendation = recommendation_text(d);
@@ -790,6 +870,25 @@ std::string tell_apart_text(const Problem& problem, const TellApart& t) {
   return "              to tell them apart: " + text + "\n";
 }
 
+/// The paths walked from the first step's alternatives, the kept one marked.
+std::string paths_text(const Diagnosis& d) {
+  if (d.paths.size() < 2) return "";
+  char line[200];
+  std::snprintf(line, sizeof line,
+                "the loop walked from the first step's next-best effects too; kept the path that ends lowest in %s "
+                "plus %.3g per effect:\n",
+                chi2_text(d.noise_known).c_str(), d.ranking.critical_value);
+  std::string text = line;
+  for (const DiagnosisPath& path : d.paths) {
+    std::string kept;
+    for (const std::string& name : path.accepted) kept += (kept.empty() ? "" : ", ") + name;
+    std::snprintf(line, sizeof line, "  %s from %s: %.4g + %zu effects = %.4g (", path.kept ? "*" : " ",
+                  path.first.c_str(), path.chi2_final, path.accepted.size(), path.score);
+    text += line + (kept.empty() ? std::string("nothing kept") : kept) + ")\n";
+  }
+  return text;
+}
+
 std::string format_steps(const Problem& problem, const Diagnosis& d) {
   std::string text = "the stepwise loop (" + chi2_text(d.noise_known) + " after each accepted effect):\n";
   char line[400];
@@ -845,7 +944,7 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
   }
   if (d.steps.empty()) text += "  no effect accepted\n";
   else text += "  end       " + fit_text(d.final_fit) + "\n";
-  return text;
+  return text + paths_text(d);
 }
 
 Problem problem_with_diagnosed_effects(const Problem& problem, const Diagnosis& d) {
