@@ -406,6 +406,9 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_EQ(d["accepted"], nlohmann::json::array({"added_mass_tip.mass"}));
   EXPECT_EQ(d["residual_final"]["model_form_error"], false);
   EXPECT_LT(d["residual_final"]["statistic"].get<double>(), step["chi2_before"].get<double>());
+  // One step that ends consistent with the noise walks no other first step.
+  ASSERT_TRUE(d["paths"].is_array()) << d.dump();
+  EXPECT_TRUE(d["paths"].empty()) << d["paths"].dump();
   bool block_wide_is_null = false;
   for (const auto& r : d["ranking"])
     if (r["name"] == "bar.stiffness_scale" || r["name"] == "bar.mass_scale") block_wide_is_null = r["location"].is_null();
