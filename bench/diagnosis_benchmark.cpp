@@ -1197,6 +1197,9 @@ int main(int argc, char** argv) {
                                     {"replaced_score", x.replaced_score}});
           for (const DroppedEffect& x : d.dropped)
             o.steps_json.push_back({{"dropped", x.name}, {"chi2_increase", x.chi2_increase}, {"on_bound", x.on_bound}});
+          for (const DiagnosisPath& x : d.paths)
+            o.steps_json.push_back({{"path", x.first}, {"score", x.score}, {"kept", x.kept}, {"joined_after", x.joined_after},
+                                    {"no_second_step", x.no_second_step}});
         }
       } catch (const std::exception& e) {
         c.error = e.what();

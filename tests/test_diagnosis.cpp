@@ -854,11 +854,46 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
     ASSERT_GT(rank, 1) << d.paths[k].first;
     EXPECT_TRUE(d.ranking.effects[rank - 1].acceptable()) << d.paths[k].first;
     EXPECT_FALSE(d.ranking.effects[rank - 1].candidate.neighbour_of(d.ranking.effects.front().candidate));
+    // One that joined a path walked before (after two or more steps: its first differs) ends
+    // where that path ends.
+    const DiagnosisPath& path = d.paths[k];
+    if (path.joined.empty()) {
+      EXPECT_EQ(path.joined_after, 0);
+      continue;
+    }
+    EXPECT_GE(path.joined_after, 2) << path.first;
+    const auto joined = std::find_if(d.paths.begin(), d.paths.begin() + static_cast<std::ptrdiff_t>(k),
+                                     [&](const DiagnosisPath& x) { return x.first == path.joined; });
+    ASSERT_NE(joined, d.paths.begin() + static_cast<std::ptrdiff_t>(k)) << path.joined;
+    EXPECT_EQ(path.accepted, joined->accepted);
+    EXPECT_EQ(path.chi2_final, joined->chi2_final);
+    EXPECT_FALSE(path.kept);
   }
   // The recommendation is the kept path's first effect, and the report lists the paths.
   ASSERT_GE(d.recommended, 0) << report;
   EXPECT_EQ(d.ranking.effects[d.recommended].candidate.name, d.steps.front().effect.candidate.name);
   EXPECT_NE(report.find("the loop walked from the first step's next-best effects too"), std::string::npos) << report;
+}
+
+TEST(Diagnosis, APathThatReachesTheKeptPathsEffectsIsWalkedNoFurther) {
+  // A stiffer pad and a heavier top: the first screen ranks the base's mass scale (a stand-in for
+  // both) above the pad's stiffness. The greedy path trades the stand-in away and ends at the two
+  // truth effects; the path from the pad's stiffness takes the top's mass next and holds those
+  // effects at the same fit, so it stops there and carries the greedy path's end.
+  const Problem hidden = WithHiddenEffect({"pad.stiffness_scale=1.3", "top.mass_scale=1.08"}, 11);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  std::vector<std::string> accepted = d.accepted();
+  std::sort(accepted.begin(), accepted.end());
+  EXPECT_EQ(accepted, (std::vector<std::string>{"pad.stiffness_scale", "top.mass_scale"})) << report;
+  const auto joined = std::find_if(d.paths.begin(), d.paths.end(),
+                                   [](const DiagnosisPath& p) { return p.first == "pad.stiffness_scale"; });
+  ASSERT_NE(joined, d.paths.end()) << report;
+  EXPECT_EQ(joined->joined, d.paths.front().first) << report;
+  EXPECT_EQ(joined->joined_after, 2) << report;
+  EXPECT_EQ(joined->chi2_final, d.paths.front().chi2_final);
+  EXPECT_FALSE(joined->kept);
+  EXPECT_NE(report.find("joined the path from"), std::string::npos) << report;
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {

@@ -231,6 +231,16 @@ struct MODALCAL_EXPORT DiagnosisPath {
   /// chi2_final plus the first step's critical value per kept effect: the paths' common measure.
   double score = 0;
   bool kept = false;  ///< the diagnosis is this path's
+  /// Not empty when, after `joined_after` forward steps, the path held the effects that the path
+  /// from `joined` (the one kept at the time) held after as many steps or at its end, at the same
+  /// fit: it was walked no further and ends where that path ends (accepted, chi2_final and score
+  /// are that path's).
+  std::string joined;
+  int joined_after = 0;
+  /// The path took no step after its first and fitted no better than the kept path's first step,
+  /// so it was walked no further (its exchange could at best trade its effect for that one):
+  /// accepted, chi2_final and score are where it stood.
+  bool no_second_step = false;
 };
 
 struct MODALCAL_EXPORT Diagnosis {

@@ -637,24 +637,66 @@ std::optional<std::pair<Problem, Vector>> check_the_mesh(const Problem& problem,
   return std::make_pair(corrected_for_mesh(problem, est, true), summary.final);
 }
 
+/// What a path through the loop ends at: -2 ln L (the chi-square) plus the first step's critical
+/// value per accepted effect kept, as the mesh check weighs its two loops.
+double path_score(const Diagnosis& d) {
+  return d.final_fit.statistic + d.rankings.front().critical_value * static_cast<double>(d.accepted().size());
+}
+
+/// The names of `effects`, sorted.
+std::vector<std::string> sorted_names(const std::vector<EffectCandidate>& effects) {
+  std::vector<std::string> names;
+  for (const EffectCandidate& c : effects) names.push_back(c.name);
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+/// True when `state`, after `steps` forward steps, holds the effects the `earlier` path held after
+/// as many, or those it ended with, at the same fit (χ² within 1e-3 relative). From the first
+/// both paths take the same steps, exchanges and drops; from the second, the walk would screen
+/// once more where the earlier path's exchange and backward pass left it, as that path did not.
+bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps) {
+  auto same_fit = [&](double chi2) { return std::abs(state.fit.statistic - chi2) <= 1e-3 * std::max(1.0, chi2); };
+  const std::vector<std::string> here = sorted_names(state.effects);
+  if (here == sorted_names(earlier.effects) && same_fit(earlier.final_fit.statistic)) return true;
+  if (steps == 0 || steps > earlier.steps.size()) return false;
+  std::vector<EffectCandidate> there = earlier.started_with;
+  for (size_t k = 0; k < steps; ++k) there.push_back(earlier.steps[k].effect.candidate);
+  return here == sorted_names(there) && same_fit(earlier.steps[steps - 1].effect.chi2_after);
+}
+
+/// What a path's walk ended at, when given a path walked before (walk()).
+enum class WalkEnd {
+  kEnd,          ///< walked to the end: forward steps, exchange and backward pass
+  kJoined,       ///< reached the earlier path's effects (joins())
+  kNoSecondStep  ///< took no step after its first and fits no better than the earlier path's first
+};
+
 /// The forward steps from `state` (after the `first` already taken), then the exchange and the
-/// backward pass; d records them and the end.
-void walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, Diagnosis* d) {
+/// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
+/// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
+/// its first and fits no better than that path's first step (its exchange could at best trade its
+/// effect for that one, and every later step, exchange or drop of that path lowered its score).
+WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, Diagnosis* d,
+             const Diagnosis* earlier = nullptr) {
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
+    if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
     if (!forward_step(fitted, &state, options, k < options.max_steps, d)) break;
   }
+  if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
+  d->effects = state.effects;
+  d->final_parameters = state.parameters;
+  d->final_fit = state.fit;
+  if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
+      path_score(*d) >= path_score(*earlier))
+    return WalkEnd::kNoSecondStep;
   if (options.exchange) exchange_pass(fitted, &state, options, d);
   if (options.backward) backward_pass(fitted, &state, options, d);
   d->effects = state.effects;
   d->final_parameters = state.parameters;
   d->final_fit = state.fit;
-}
-
-/// What a path through the loop ends at: -2 ln L (the chi-square) plus the first step's critical
-/// value per accepted effect kept, as the mesh check weighs its two loops.
-double path_score(const Diagnosis& d) {
-  return d.final_fit.statistic + d.rankings.front().critical_value * static_cast<double>(d.accepted().size());
+  return WalkEnd::kEnd;
 }
 
 /// True when a and b kept the same effects: paths that end there differ only in rounding, and
@@ -668,7 +710,7 @@ bool same_effects(const Diagnosis& a, const Diagnosis& b) {
 
 /// The record of d's path for Diagnosis::paths.
 DiagnosisPath path_of(const Diagnosis& d) {
-  return {d.steps.front().effect.candidate.name, d.accepted(), d.final_fit.statistic, path_score(d), false};
+  return {d.steps.front().effect.candidate.name, d.accepted(), d.final_fit.statistic, path_score(d), false, "", 0, false};
 }
 
 /// The first ranking's acceptable refits, other than its first, to start another path from: at
@@ -713,9 +755,17 @@ void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOpti
     other.map = d->map;
     LoopState state = start;
     accept_effect(fitted, index, options, &state, &other);
-    walk(fitted, state, 1, options, &other);
+    const WalkEnd end = walk(fitted, state, 1, options, &other, d);
+    if (end == WalkEnd::kJoined) {
+      paths.push_back(path_of(*d));
+      paths.back().joined = paths.back().first;
+      paths.back().first = other.steps.front().effect.candidate.name;
+      paths.back().joined_after = static_cast<int>(other.steps.size());
+      continue;
+    }
     paths.push_back(path_of(other));
-    if (paths.back().score < path_score(*d) && !same_effects(other, *d)) *d = std::move(other);
+    paths.back().no_second_step = end == WalkEnd::kNoSecondStep;
+    if (end == WalkEnd::kEnd && paths.back().score < path_score(*d) && !same_effects(other, *d)) *d = std::move(other);
   }
   for (DiagnosisPath& path : paths) path.kept = path.first == d->steps.front().effect.candidate.name;
   d->paths = std::move(paths);
@@ -884,7 +934,11 @@ std::string paths_text(const Diagnosis& d) {
     for (const std::string& name : path.accepted) kept += (kept.empty() ? "" : ", ") + name;
     std::snprintf(line, sizeof line, "  %s from %s: %.4g + %zu effects = %.4g (", path.kept ? "*" : " ",
                   path.first.c_str(), path.chi2_final, path.accepted.size(), path.score);
-    text += line + (kept.empty() ? std::string("nothing kept") : kept) + ")\n";
+    text += line + (kept.empty() ? std::string("nothing kept") : kept) + ")";
+    if (!path.joined.empty())
+      text += ", joined the path from " + path.joined + " after " + std::to_string(path.joined_after) + " steps";
+    if (path.no_second_step) text += ", no second step: walked no further";
+    text += "\n";
   }
   return text;
 }
