@@ -810,7 +810,8 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
 TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLowest) {
   // The two point masses of the exchange test, without the exchange pass: the greedy first step
   // takes a mass that stands for both. Walked again from the first screen's next-best effects,
-  // the kept path is the one that ends lowest in chi-square plus a critical value per effect.
+  // the kept path is the one that ends lowest in chi-square plus a critical value and its kind's
+  // prior penalty per effect.
   const Problem hidden = WithHiddenEffect({"point_mass@[1,0,0]:mass=0.05", "point_mass@[1,1,1.5]:mass=0.05"}, 54);
   DiagnosisOptions options;
   options.exchange = false;
@@ -827,13 +828,26 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
   EXPECT_CLOSE(d.paths.front().chi2_final, greedy.final_fit.statistic, 1e-6);
   const double critical = d.ranking.critical_value;
   int kept = 0;
+  // The score: the chi-square plus, per kept effect, the critical value and its kind's prior
+  // penalty (2 ln n_kind, never negative), as in the step that put it in.
+  auto kind_penalty = [&](const std::string& name) {
+    for (auto it = d.exchanges.rbegin(); it != d.exchanges.rend(); ++it)
+      if (it->effect.candidate.name == name) return it->effect.kind_penalty;
+    for (const DiagnosisStep& s : d.steps)
+      if (s.effect.candidate.name == name) return s.effect.kind_penalty;
+    ADD_FAILURE() << name << " was put in by no step";
+    return 0.0;
+  };
   for (const DiagnosisPath& path : d.paths) {
-    EXPECT_CLOSE(path.score, path.chi2_final + critical * static_cast<double>(path.accepted.size()), 1e-12);
+    EXPECT_GE(path.score, path.chi2_final + critical * static_cast<double>(path.accepted.size()) - 1e-9);
     if (!path.kept) continue;
     ++kept;
     EXPECT_EQ(path.first, d.steps.front().effect.candidate.name);
     EXPECT_EQ(path.accepted, d.accepted());
     EXPECT_CLOSE(path.chi2_final, d.final_fit.statistic, 1e-12);
+    double score = path.chi2_final;
+    for (const std::string& name : path.accepted) score += critical + kind_penalty(name);
+    EXPECT_CLOSE(path.score, score, 1e-12);
   }
   EXPECT_EQ(kept, 1) << report;
   // Lowest among the paths that kept other effects (one that ends at the same effects differs

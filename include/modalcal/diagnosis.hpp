@@ -92,9 +92,10 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// When the loop took two or more steps or ends with a residual larger than the noise, walk it
   /// again from each of the first step's next-best significant refits (at most this many, none a
   /// neighbour of the first or of another), and keep the path that ends lowest in chi-square plus
-  /// the first step's critical value per kept effect (Diagnosis::paths). With several effects at
-  /// once the best single effect may stand in for them together, and one exchange at a time does
-  /// not undo that. Each path costs a loop. Range: >= 0 (0: the greedy path only).
+  /// the first step's critical value and the effect's kind penalty (RankedEffect::kind_penalty)
+  /// per kept effect (Diagnosis::paths). With several effects at once the best single effect may
+  /// stand in for them together, and one exchange at a time does not undo that. Each path costs
+  /// up to a loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options).
@@ -228,7 +229,8 @@ struct MODALCAL_EXPORT DiagnosisPath {
   std::string first;                  ///< the first step's effect
   std::vector<std::string> accepted;  ///< the effects kept at its end
   double chi2_final = 0;              ///< X^2 at its end
-  /// chi2_final plus the first step's critical value per kept effect: the paths' common measure.
+  /// chi2_final plus, per kept effect, the first step's critical value and the effect's kind
+  /// penalty 2 ln n_kind (the prior the ranking orders by): the paths' common measure.
   double score = 0;
   bool kept = false;  ///< the diagnosis is this path's
   /// Not empty when, after `joined_after` forward steps, the path held the effects that the path

@@ -637,10 +637,15 @@ std::optional<std::pair<Problem, Vector>> check_the_mesh(const Problem& problem,
   return std::make_pair(corrected_for_mesh(problem, est, true), summary.final);
 }
 
-/// What a path through the loop ends at: -2 ln L (the chi-square) plus the first step's critical
-/// value per accepted effect kept, as the mesh check weighs its two loops.
+/// What a path through the loop ends at: -2 ln L (the chi-square) plus, per accepted effect kept,
+/// the first step's critical value (the price the mesh check puts on an effect) and its kind's
+/// penalty, 2 ln n_kind: the prior over kinds each step's choice was made with, so that a path
+/// does not win on a better fit that prior gave away (a point mass against its column's scale).
 double path_score(const Diagnosis& d) {
-  return d.final_fit.statistic + d.rankings.front().critical_value * static_cast<double>(d.accepted().size());
+  double score = d.final_fit.statistic;
+  for (const std::string& name : d.accepted())
+    score += d.rankings.front().critical_value + step_that_added(d, name)->effect.kind_penalty;
+  return score;
 }
 
 /// The names of `effects`, sorted.
@@ -926,7 +931,7 @@ std::string paths_text(const Diagnosis& d) {
   char line[200];
   std::snprintf(line, sizeof line,
                 "the loop walked from the first step's next-best effects too; kept the path that ends lowest in %s "
-                "plus %.3g per effect:\n",
+                "plus %.3g and its kind's prior penalty per effect:\n",
                 chi2_text(d.noise_known).c_str(), d.ranking.critical_value);
   std::string text = line;
   for (const DiagnosisPath& path : d.paths) {
