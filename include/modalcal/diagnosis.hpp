@@ -239,9 +239,9 @@ struct MODALCAL_EXPORT DiagnosisPath {
   /// are that path's).
   std::string joined;
   int joined_after = 0;
-  /// The path took no step after its first and fitted no better than the kept path's first step,
-  /// so it was walked no further (its exchange could at best trade its effect for that one):
-  /// accepted, chi2_final and score are where it stood.
+  /// The path took no step after its first, fitted no better than the kept path's first step and
+  /// scored no lower than the kept path, so it was walked no further (its exchange could at best
+  /// trade its effect for that one): accepted, chi2_final and score are where it stood.
   bool no_second_step = false;
 };
 

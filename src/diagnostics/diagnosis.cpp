@@ -680,8 +680,8 @@ enum class WalkEnd {
 /// The forward steps from `state` (after the `first` already taken), then the exchange and the
 /// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
 /// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
-/// its first and fits no better than that path's first step (its exchange could at best trade its
-/// effect for that one, and every later step, exchange or drop of that path lowered its score).
+/// its first and fits no better than that path's first step, at no lower a score (its exchange
+/// could at best trade its effect for that one, where that path went on from).
 WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, Diagnosis* d,
              const Diagnosis* earlier = nullptr) {
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
