@@ -880,7 +880,7 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
                                      [&](const DiagnosisPath& x) { return x.first == path.joined; });
     ASSERT_NE(joined, d.paths.begin() + static_cast<std::ptrdiff_t>(k)) << path.joined;
     EXPECT_EQ(path.accepted, joined->accepted);
-    EXPECT_EQ(path.chi2_final, joined->chi2_final);
+    EXPECT_CLOSE(path.chi2_final, joined->chi2_final, 1e-12);
     EXPECT_FALSE(path.kept);
   }
   // The recommendation is the kept path's first effect, and the report lists the paths.
@@ -905,7 +905,7 @@ TEST(Diagnosis, APathThatReachesTheKeptPathsEffectsIsWalkedNoFurther) {
   ASSERT_NE(joined, d.paths.end()) << report;
   EXPECT_EQ(joined->joined, d.paths.front().first) << report;
   EXPECT_EQ(joined->joined_after, 2) << report;
-  EXPECT_EQ(joined->chi2_final, d.paths.front().chi2_final);
+  EXPECT_CLOSE(joined->chi2_final, d.paths.front().chi2_final, 1e-12);
   EXPECT_FALSE(joined->kept);
   EXPECT_NE(report.find("joined the path from"), std::string::npos) << report;
 }
