@@ -677,6 +677,13 @@ enum class WalkEnd {
   kNoSecondStep  ///< took no step after its first and fits no better than the earlier path's first
 };
 
+/// Records `state` as where d's path ends.
+void end_at(const LoopState& state, Diagnosis* d) {
+  d->effects = state.effects;
+  d->final_parameters = state.parameters;
+  d->final_fit = state.fit;
+}
+
 /// The forward steps from `state` (after the `first` already taken), then the exchange and the
 /// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
 /// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
@@ -690,17 +697,13 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
     if (!forward_step(fitted, &state, options, k < options.max_steps, d)) break;
   }
   if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
-  d->effects = state.effects;
-  d->final_parameters = state.parameters;
-  d->final_fit = state.fit;
+  end_at(state, d);
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
   if (options.exchange) exchange_pass(fitted, &state, options, d);
   if (options.backward) backward_pass(fitted, &state, options, d);
-  d->effects = state.effects;
-  d->final_parameters = state.parameters;
-  d->final_fit = state.fit;
+  end_at(state, d);
   return WalkEnd::kEnd;
 }
 
