@@ -158,6 +158,7 @@ struct Settings {
   double target_error = 1e-8;
   int reduced_max_iterations = 1000;
   double globalization_reduction = FullSpaceOptions().globalization_reduction;
+  double mu_init = FullSpaceOptions().mu_init;
   int ipopt_print_level = 0;
   double max_seconds = 900;
   double max_memory_mb = 0;
@@ -245,6 +246,7 @@ void run_case(const Settings& s, double refinement, Method method, CaseResult& r
   } else {
     FullSpaceOptions o;
     o.globalization_reduction = s.globalization_reduction;
+    o.mu_init = s.mu_init;
     o.print_level = s.ipopt_print_level;
     if (is_block_sqp(method)) o.newton_solver = FullSpaceOptions::NewtonSolver::BlockElimination;
     o.bordered_solves = bordered_solves(method);
@@ -444,6 +446,7 @@ const char* kUsage =
     "  --reduced-max-iterations N  L-BFGS iteration cap (default 1000)\n"
     "  --ipopt-print-level N       FullSpaceOptions::print_level (default 0, silent)\n"
     "  --globalization-reduction R FullSpaceOptions::globalization_reduction (default: its default)\n"
+    "  --mu-init MU                FullSpaceOptions::mu_init, Ipopt's first barrier parameter (default: its default)\n"
     "  --max-seconds S             per case; the child is killed after it (default 900)\n"
     "  --max-memory-mb M           per case resident-memory limit (default 60 % of RAM; 0 none)\n"
     "  --json OUT                  also write the results as JSON\n";
@@ -489,6 +492,7 @@ int run(int argc, char** argv) {
     else if (a == "--target-error") s.target_error = number();
     else if (a == "--reduced-max-iterations") s.reduced_max_iterations = static_cast<int>(number());
     else if (a == "--globalization-reduction") s.globalization_reduction = number();
+    else if (a == "--mu-init") s.mu_init = number();
     else if (a == "--ipopt-print-level") s.ipopt_print_level = static_cast<int>(number());
     else if (a == "--max-seconds") s.max_seconds = number();
     else if (a == "--max-memory-mb") s.max_memory_mb = number();

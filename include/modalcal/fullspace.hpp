@@ -74,8 +74,11 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   /// 4-fold (large models, whose per-mode solves cannot meet 1e-10; newton_status
   /// Stopped_At_Rounding_Floor). Range: (0, 1).
   double tolerance = 1e-10;
-  /// Barrier parameter Ipopt starts from (warm start; Ipopt only). Range: > 0.
-  double mu_init = 1e-9;
+  /// Barrier parameter Ipopt starts from (warm start; Ipopt only). Range: > 0. The default is
+  /// `tolerance` / 10, where Ipopt's monotone update of the barrier parameter ends: the Newton
+  /// phase starts near the solution, and from a larger value Ipopt takes one more iteration to
+  /// lower it, as the complementarity it tests is about the barrier parameter.
+  double mu_init = 1e-11;
   /// Who solves the Newton phase's KKT systems.
   ///  - `Ipopt`: Ipopt's interior-point Newton method, MUMPS on the whole KKT matrix of order
   ///    2 l (n + 1) + m (the design's reference path; its cost grows with the fill of the coupled
