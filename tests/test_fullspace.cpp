@@ -419,6 +419,34 @@ TEST(FullSpaceDriver, AnAttemptStopsAtTheRoundingFloorButNotWhileNewtonStillConv
   }
 }
 
+// On a large model the forward solve itself leaves the constraints above the tolerance: an
+// attempt whose gradient has converged stops once they are met about as well as at its start
+// (the forward solve's residual), however much the last step cut them; where the start met the
+// tolerance, Newton goes on.
+TEST(FullSpaceDriver, AnAttemptStopsWhereItMeetsTheConstraintsAsWellAsTheForwardSolve) {
+  DriverAt d(1.0);  // tolerance 1e-10
+  ASSERT_FALSE(d.start_failed);
+  auto iteration = [](int k, double primal, double dual) {
+    return detail::NewtonIteration::at(k, 0.0, primal, dual, 1, 0);
+  };
+  struct Case {
+    double start, after_first_step, after_second_step;
+    bool floor;
+  };
+  for (const Case& c : {Case{1.04e-10, 4.8e-4, 2.0e-10, true},     // within 4x of the start's residual
+                        Case{2.0e-11, 4.8e-4, 2.0e-10, false},     // the start met the tolerance
+                        Case{1.04e-10, 4.8e-4, 6.0e-10, false}}) {  // 6x the start's: not yet
+    detail::FullSpaceDriver::Guard guard{d.p, d.p, false, 0};
+    detail::NewtonCallback callback = d.driver.guarded(&guard);
+    EXPECT_TRUE(callback(iteration(0, c.start, 1e-4), d.x0.data()));
+    EXPECT_TRUE(callback(iteration(1, c.after_first_step, 1e-8), d.x0.data()));
+    EXPECT_EQ(callback(iteration(2, c.after_second_step, 1e-16), d.x0.data()), !c.floor)
+        << c.start << " -> " << c.after_first_step << " -> " << c.after_second_step;
+    EXPECT_EQ(guard.at_floor, c.floor);
+    EXPECT_FALSE(guard.fired);
+  }
+}
+
 // Steps 2-4: the Newton phase from a start near the truth converges to it, guarded and checked.
 TEST(FullSpaceDriver, TheNewtonPhaseConvergesToTheTruthFromNearIt) {
   DriverAt d(1.02);

@@ -71,7 +71,8 @@ struct MODALCAL_EXPORT FullSpaceOptions {
   /// solver max(|c|_inf, |projected grad L|_inf). The phase also stops, converged, at the
   /// rounding floor of its constraints: gradient and complementarity below the tolerance, the
   /// constraint violation under 100 x tolerance, and a full Newton step that cut it less than
-  /// 4-fold (large models, whose per-mode solves cannot meet 1e-10; newton_status
+  /// 4-fold or a violation within 4 x that of the Newton start, a forward solve's, where that was
+  /// above the tolerance (large models, whose per-mode solves cannot meet 1e-10; newton_status
   /// Stopped_At_Rounding_Floor). Range: (0, 1).
   double tolerance = 1e-10;
   /// Barrier parameter Ipopt starts from (warm start; Ipopt only). Range: > 0. The default is

@@ -39,6 +39,7 @@ class FullSpaceDriver {
     int offset = 0;  // Newton iterations before this attempt
     bool at_floor = false;
     double previous_primal = -1;  // the attempt's previous constraint violation (-1: none yet)
+    double start_primal = -1;     // at the attempt's start, a forward solve's residual (-1: none yet)
   };
 
   /// 1. Reduced L-BFGS from `start` (eigenvalue terms first) until the projected gradient has
@@ -54,8 +55,11 @@ class FullSpaceDriver {
   bool guard_needed(const Guard& guard, const KktRecord& record) const;
   /// Whether the attempt has reached the rounding floor of its constraints: gradient and
   /// complementarity converged, the constraint violation within kFloorFactor of the tolerance
-  /// but above it, and the last full step cut it less than kFloorReduction-fold, where Newton so
-  /// near the solution would square it. Further iterations would only chase rounding.
+  /// but above it, and either the last full step cut it less than kFloorReduction-fold, where
+  /// Newton so near the solution would square it, or it is within kFloorReduction of the
+  /// start's, a forward solve's residual that was itself above the tolerance (large models):
+  /// the constraints are then met as well as the eigen-solve meets them. Further iterations
+  /// would only chase rounding.
   bool at_rounding_floor(const Guard& guard, const KktRecord& record) const;
   static constexpr double kFloorFactor = 100, kFloorReduction = 4;
   /// 2-4. Newton from p to convergence, restarted where the guard fires, then verified.

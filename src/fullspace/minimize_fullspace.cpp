@@ -298,6 +298,7 @@ NewtonCallback FullSpaceDriver::guarded(Guard* guard) {
     summary_.kkt_history.push_back(record);
     if (options_.progress) options_.progress(record);
     if (!guard->fired && at_rounding_floor(*guard, record)) guard->at_floor = true;
+    if (guard->start_primal < 0) guard->start_primal = record.primal_infeasibility;
     guard->previous_primal = record.primal_infeasibility;
     return !guard->fired && !guard->at_floor;
   };
@@ -312,9 +313,12 @@ bool FullSpaceDriver::guard_needed(const Guard& guard, const KktRecord& record) 
 
 bool FullSpaceDriver::at_rounding_floor(const Guard& guard, const KktRecord& record) const {
   const double tol = options_.tolerance, primal = record.primal_infeasibility;
+  const bool no_longer_squared = primal * kFloorReduction > guard.previous_primal;
+  const bool as_the_forward_solve = guard.start_primal > tol && guard.start_primal <= kFloorFactor * tol &&
+                                    primal <= kFloorReduction * guard.start_primal;
   return guard.previous_primal > 0 && record.step_length == 1 && record.dual_infeasibility <= tol &&
          record.complementarity <= tol && primal > tol && primal <= kFloorFactor * tol &&
-         primal * kFloorReduction > guard.previous_primal;
+         (no_longer_squared || as_the_forward_solve);
 }
 
 NewtonPhaseOptions FullSpaceDriver::newton_options() const {
