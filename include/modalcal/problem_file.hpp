@@ -49,6 +49,12 @@ MODALCAL_EXPORT Problem load_problem(const std::string& path, const LoadOptions&
 ///   malformed change, or a key beside `changes` and `description`.
 MODALCAL_EXPORT std::optional<std::vector<ModelChange>> load_model_changes(const std::string& path);
 
+/// Why `path` cannot be read as a `what` (for the message, e.g. "calibration report"), or "" if
+/// it can: it does not exist, is a directory, or is not a regular file (a device such as
+/// /dev/zero or a FIFO, which would hang a reader). Every input file passes this check first.
+/// Example: `if (auto why = unreadable_input(path, "report"); !why.empty()) throw ...(why);`
+MODALCAL_EXPORT std::string unreadable_input(const std::string& path, const std::string& what);
+
 /// Writes `data` as a YAML data file (atomically; numbers in their shortest round-trip form, so
 /// reading it back gives the same doubles).
 /// \throws std::invalid_argument if `path` is one of `inputs`, std::runtime_error if it cannot be written.

@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/output.hpp"
@@ -184,6 +185,8 @@ nlohmann::json parameter_summary(const Problem& problem, size_t j, const std::ve
 std::vector<nlohmann::json> merged_runs(const Problem& problem, const std::vector<std::string>& merge) {
   std::vector<nlohmann::json> runs;
   for (const std::string& file : merge) {
+    if (const std::string why = unreadable_input(file, "campaign JSON"); !why.empty())
+      throw InputError("campaign --merge: " + why);
     nlohmann::json json;
     try {
       json = nlohmann::json::parse(std::ifstream(file));
@@ -221,20 +224,34 @@ void print_run(const nlohmann::json& r) {
   std::fflush(stdout);
 }
 
+/// A folder of its own for the runs' files, removed however the campaign ends.
+struct TemporaryFolder {
+  explicit TemporaryFolder(fs::path p) : path(std::move(p)) { fs::create_directories(path); }
+  ~TemporaryFolder() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  TemporaryFolder(const TemporaryFolder&) = delete;
+  TemporaryFolder& operator=(const TemporaryFolder&) = delete;
+  fs::path path;
+};
+
 /// Every data set calibrated, across the farm's ranks, in input order.
 std::vector<nlohmann::json> calibrate_all(const CampaignArgs& args, const std::vector<std::string>& files,
                                           WorkFarm& farm) {
   if (farm.size() > 1)
     std::printf("%zu data sets across %d MPI ranks, rank 0 handing them out\n", files.size(), farm.size());
-  const fs::path folder = fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid()));
-  fs::create_directories(folder);
+  const TemporaryFolder folder(fs::temp_directory_path() / ("modalcal-campaign-" + std::to_string(::getpid())));
   farm.set_threads(threads_for_jobs(args.jobs));
   if (farm.threads() > 1 && files.size() > 1)
     std::printf("%zu data sets, up to %d at a time in threads\n", files.size(), farm.threads());
-  const std::vector<std::string> results = farm.map(
-      files.size(), [&](size_t k) { return calibrate_one(args, files[k], folder, static_cast<int>(k)).dump(); },
-      [](size_t, const std::string& r) { print_run(nlohmann::json::parse(r)); });
-  fs::remove_all(folder);
+  // A reason quoting a file's bytes need not be UTF-8: such bytes are written as U+FFFD.
+  const auto run_text = [&](size_t k) {
+    return calibrate_one(args, files[k], folder.path, static_cast<int>(k))
+        .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  };
+  const std::vector<std::string> results =
+      farm.map(files.size(), run_text, [](size_t, const std::string& r) { print_run(nlohmann::json::parse(r)); });
   std::vector<nlohmann::json> runs;
   for (const std::string& r : results) runs.push_back(nlohmann::json::parse(r));
   return runs;
@@ -332,7 +349,7 @@ void register_campaign_command(CLI::App& app, int* exit_code) {
                   "draw the calibrated values (.png or .svg): each parameter's histogram and every pair's scatter");
   cmd->add_option("--significance", args->significance,
                   "level of the test that a parameter varies between tests (default 0.01)")
-      ->check(CLI::Range(1e-6, 0.5));
+      ->check(FiniteRange(1e-6, 0.5));
   cmd->add_option("--jobs", args->jobs,
                   "data sets calibrated at a time, each in a thread (default: one per core; 1: one after another). "
                   "The results do not depend on it. In an MPI job the ranks share the data sets instead")

@@ -29,6 +29,8 @@ double parse_value(const std::string& text, const std::string& what) {
 }
 
 Vector from_report(const Problem& problem, const std::string& path) {
+  if (const std::string why = unreadable_input(path, "calibration report"); !why.empty())
+    throw InputError("--params: " + why + " (expected initial, truth or a report JSON)");
   std::ifstream in(path);
   if (!in) throw InputError("--params " + path + ": cannot open the file (expected initial, truth or a report JSON)");
   nlohmann::json report;
@@ -46,6 +48,7 @@ Vector from_report(const Problem& problem, const std::string& path) {
     const std::string name = entry.value("name", "");
     const int j = problem.find_parameter(name);
     if (j < 0) throw InputError(path + ": parameter '" + name + "' is not in the problem " + problem.path);
+    if (seen[j]) throw InputError(path + ": parameter '" + name + "' is listed twice; which value is meant?");
     const char* key = entry.contains("final") ? "final" : "value";
     if (!entry.contains(key) || !entry[key].is_number())
       throw InputError(path + ": parameter '" + name + "' has no numeric 'final' value");

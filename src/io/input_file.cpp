@@ -7,6 +7,7 @@
 
 #include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
+#include "modalcal/problem_file.hpp"
 
 namespace modalcal::detail {
 
@@ -30,6 +31,18 @@ std::string unreadable_reason(const std::string& path, const std::string& what, 
   }
   return "";
 }
+
+}  // namespace modalcal::detail
+
+namespace modalcal {
+
+std::string unreadable_input(const std::string& path, const std::string& what) {
+  return detail::unreadable_reason(path, what);
+}
+
+}  // namespace modalcal
+
+namespace modalcal::detail {
 
 YAML::Node load_yaml_file(const std::string& path, const std::string& what) {
   if (const std::string reason = unreadable_reason(path, what, kMostYamlBytes); !reason.empty())
