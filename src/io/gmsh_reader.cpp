@@ -157,6 +157,7 @@ void check_msh2_ascii(const std::string& path) {
   if (!next() || !(std::istringstream(line) >> version >> file_type) || version < 2 || version >= 3 || file_type != 0)
     return;
   std::unordered_map<long, int> defined;  // node number -> line
+  std::unordered_map<long, int> elements;  // element number -> line
   std::vector<long> numbers;
   auto count_line = [&](const std::string& section) {
     if (!next()) fail("the file ends after " + section + "; the count of its entries should follow");
@@ -190,6 +191,10 @@ void check_msh2_ascii(const std::string& path) {
           fail("an element line is whole numbers (number, type, count of tags, tags, nodes), found '" +
                excerpt(trim(line), 60) + "'");
         const long element = numbers[0], type = numbers[1], tags = numbers[2];
+        // Gmsh keeps one of two elements with the same number and drops the other without a word.
+        if (const auto [it, is_new] = elements.emplace(element, line_number); !is_new)
+          fail("an element id is defined twice (element " + std::to_string(element) + ", at lines " +
+               std::to_string(it->second) + " and " + std::to_string(line_number) + ")");
         const int nodes = msh2_nodes_per_element(type);
         if (nodes == 0) fail("element " + std::to_string(element) + " has type " + std::to_string(type) +
                              ", which is no MSH 2 element type");

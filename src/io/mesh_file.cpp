@@ -95,6 +95,28 @@ void check_unique_ids_and_names(const std::string& path, const RawMesh& mesh) {
                            "; node set names must be unique");
 }
 
+// Two elements on the same nodes would count that part's stiffness and mass twice, and two with
+// one id make the messages that name elements ambiguous: both are export errors, not a model.
+void check_unique_elements(const std::string& path, const RawMesh& mesh) {
+  std::map<long, const MeshFileBlock*> block_of_id;
+  std::map<std::vector<int>, long> id_of_nodes;
+  for (const MeshFileBlock& b : mesh.blocks) {
+    const size_t n = static_cast<size_t>(nodes_per_element(b.type));
+    for (size_t e = 0; e < b.element_ids.size(); ++e) {
+      const long id = b.element_ids[e];
+      if (const auto [it, is_new] = block_of_id.emplace(id, &b); !is_new)
+        mesh_error(path, "element id " + std::to_string(id) + " is given to two elements (blocks " +
+                             quote(it->second->name) + " and " + quote(b.name) + "); element ids must be unique");
+      std::vector<int> nodes(b.connectivity.begin() + static_cast<std::ptrdiff_t>(e * n),
+                             b.connectivity.begin() + static_cast<std::ptrdiff_t>((e + 1) * n));
+      std::sort(nodes.begin(), nodes.end());
+      if (const auto [it, is_new] = id_of_nodes.emplace(std::move(nodes), id); !is_new)
+        mesh_error(path, "elements " + std::to_string(it->second) + " and " + std::to_string(id) +
+                             " have the same nodes: that part would count twice (an element exported twice?)");
+    }
+  }
+}
+
 // Keeps the nodes some element uses, in the reader's order; node sets lose the others.
 MeshFile compact(const std::string& path, MeshFileFormat format, RawMesh raw) {
   std::vector<int> new_index(raw.coordinates.size(), -1);
@@ -169,6 +191,7 @@ MeshFile read_mesh_file(const std::string& path, std::optional<MeshFileFormat> f
   RawMesh raw = *format == MeshFileFormat::Gmsh ? detail::read_gmsh(path) : detail::read_exodus(path);
   if (raw.blocks.empty()) mesh_error(path, "has no solid elements");
   check_unique_ids_and_names(path, raw);
+  check_unique_elements(path, raw);
   check_finite_coordinates(path, raw);
   check_orientation(path, raw);
   return compact(path, *format, std::move(raw));
