@@ -10,6 +10,7 @@
 #include <set>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/comparison.hpp"
 #include "modalcal/output.hpp"
@@ -234,7 +235,7 @@ void register_compare_command(CLI::App& app, int* exit_code) {
       ->check(positive_number());
   cmd->add_option("--unpaired-mac", args->unpaired_mac, "pairs with a lower MAC are listed as unpaired (default 0.5)")
       ->check(finite_number())
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(FiniteRange(0.0, 1.0));
   cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file");
   cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file");
   cmd->callback([args, exit_code] { *exit_code = run_compare(*args); });

@@ -11,6 +11,7 @@
 #include <optional>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/diagnosis.hpp"
@@ -539,7 +540,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")
       ->check(finite_number())
-      ->check(CLI::Range(1e-12, 0.5));
+      ->check(FiniteRange(1e-12, 0.5));
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
       ->check(non_negative_number());
   cmd->add_option("--max-steps", args->max_steps,
@@ -548,7 +549,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--mesh-check", args->mesh_check,
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")
-      ->check(CLI::Range(0.0, 4.0));
+      ->check(FiniteRange(0.0, 4.0));
   cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
                   "when the loop takes two or more steps or ends above the noise, walk it again from this many of "
                   "the first step's next-best effects and keep the path that ends lowest (default " +
@@ -576,7 +577,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--region-size", args->region_size,
                   "size of the block regions screened, in element sizes (default 3)")
       ->check(finite_number())
-      ->check(CLI::Range(1.0, 1000.0));
+      ->check(FiniteRange(1.0, 1000.0));
   cmd->add_option("--region-levels", args->region_levels,
                   "grids of block regions screened, each twice as coarse as the one before (default 3)")
       ->check(CLI::Range(1, 6));

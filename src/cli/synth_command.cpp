@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/measured_data.hpp"
 #include "modalcal/model_change.hpp"
@@ -138,16 +139,17 @@ void register_synth_command(CLI::App& app, int* exit_code) {
                   "point_mass@top:mass=0.05 (repeatable; default: the nominal model at the parameters' truth values)");
   cmd->add_option("--noise-freq", args->noise_frequency, "relative standard deviation of the frequencies (default 0)")
       ->check(finite_number())
-      ->check(CLI::Range(0.0, 0.2));
+      ->check(FiniteRange(0.0, 0.2));
   cmd->add_option("--noise-shape", args->noise_shape,
                   "standard deviation of each shape value relative to the shape's largest (default 0)")
       ->check(finite_number())
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(FiniteRange(0.0, 1.0));
   cmd->add_option("--sensors", args->sensors, "node set measured in x, y and z (default: the problem's sensors)");
   cmd->add_option("--modes", args->modes, "truth-model modes to measure, e.g. 1,2,3 (default: the problem's)")
       ->delimiter(',')
       ->check(positive_number());
-  cmd->add_option("--seed", args->seed, "random seed (default 1); the same seed gives the same data everywhere");
+  cmd->add_option("--seed", args->seed, "random seed (default 1); the same seed gives the same data everywhere")
+      ->check(SeedText());
   cmd->add_option("--refine", args->refine, "mesh refinement factor for the nominal and a truth problem file")
       ->check(positive_number());
   cmd->add_option("-o,--output", args->output, "data file to write (YAML)")->required();

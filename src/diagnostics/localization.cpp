@@ -46,6 +46,12 @@ struct Pairing {
 void pair_modes(const Problem& problem, const Vector& p, const LocalizationOptions& options, double cutoff_hz,
                 Pairing* pairing) {
   pairing->problem = problem;
+  // Checked before the modal solve, which would otherwise fail for a basis larger than the model.
+  const int readings = static_cast<int>(problem.sensors.size());
+  if (options.basis_modes > readings && options.regularization == 0)
+    throw std::invalid_argument("LocalizationOptions: basis_modes = " + std::to_string(options.basis_modes) +
+                                " is more than the " + std::to_string(readings) +
+                                " sensor readings can tell apart; use fewer basis modes or a regularization > 0");
   const int limit = std::max(1, std::min(options.max_automatic_basis,
                                          static_cast<int>(problem.sensors.size()) - problem.expected_rigid_modes()));
   int wanted = options.basis_modes > 0 ? options.basis_modes : std::min(limit, 2 * problem.options.num_modes);

@@ -1,0 +1,49 @@
+#pragma once
+// Internal: validators for command-line options beyond CLI11's own.
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace modalcal::cli {
+
+/// CLI11's Range for a real-valued option, refusing NaN and infinities as well (NaN compares
+/// false with both ends, so CLI::Range lets it through) and printing the ends as given (1e-12,
+/// where CLI::Range prints 0.000000).
+inline CLI::Validator FiniteRange(double min, double max) {
+  const auto text_of = [](double v) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%g", v);
+    return std::string(buffer);
+  };
+  const std::string range = text_of(min) + " to " + text_of(max);
+  return CLI::Validator(
+      [min, max, range](std::string& text) -> std::string {
+        double v = NAN;
+        size_t used = 0;
+        try {
+          v = std::stod(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == text.size() && std::isfinite(v) && v >= min && v <= max) return "";
+        return "Value " + text + " not in range " + range;
+      },
+      "[" + range + "]");
+}
+
+/// A seed written as the digits of an unsigned 64-bit integer: CLI11 would wrap "-1" and clamp
+/// 2^64 to 2^64 - 1 without a word, and the data would then not be the ones the seed names.
+inline CLI::Validator SeedText() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const bool digits = !text.empty() && text.size() <= 20 &&
+                            text.find_first_not_of("0123456789") == std::string::npos;
+        if (digits && (text.size() < 20 || text <= "18446744073709551615")) return "";
+        return "seed " + text + " is not an integer from 0 to 18446744073709551615";
+      },
+      "UINT64");
+}
+
+}  // namespace modalcal::cli
