@@ -89,6 +89,7 @@ struct MODALCAL_EXPORT ModalResult {
   Vector eigenvalues;                ///< elastic modes, ascending
   Matrix modes;                      ///< columns, \f$u^T M u = 1\f$, largest component positive
   Vector residuals;                  ///< \f$\|K u - \lambda M u\| / (\lambda \|M u\|)\f$ per mode
+                                     ///< (the solve fails when one exceeds max(1e-3, 100 tolerance))
   Vector rigid_eigenvalues;          ///< rigid-body modes found (near zero)
   Matrix rigid_modes;
   double shift = 0;                  ///< the shift used

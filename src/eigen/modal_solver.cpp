@@ -193,6 +193,25 @@ bool sparse_eigenpairs(detail::CholmodFactor& factor, const SparseMatrix& K, con
   return spectra_eigenpairs(factor, M, sigma, wanted, options, result, pairs);
 }
 
+// A solved mode's relative residual is near the rounding floor (1e-12 or below); one above 1e-3
+// (or 100 times a loose ModalOptions::tolerance) is no eigenpair at all. That happens when M has fewer nonzero eigenvalues than modes were
+// asked for (a block of density 0 carrying a point mass): the solve then returns vectors in M's
+// null space, and reporting them as modes would pass garbage on as frequencies.
+bool residuals_plausible(const ModalOptions& options, ModalResult* result) {
+  const double most = std::max(1e-3, 100 * options.tolerance);
+  for (Eigen::Index k = 0; k < result->residuals.size(); ++k) {
+    if (result->residuals[k] <= most) continue;
+    std::ostringstream s;
+    s << "elastic mode " << k + 1 << " is no eigenpair (its relative residual is above " << most
+      << " or not a number): the mass matrix has fewer nonzero eigenvalues than modes were asked for. Likely "
+         "causes: a block with density 0, or fewer mass-carrying degrees of freedom than options.num_modes.";
+    result->status = EigenStatus::NumericalIssue;
+    result->message = s.str();
+    return false;
+  }
+  return true;
+}
+
 // Splits rigid-body (near-zero) from elastic modes, normalizes (u^T M u = 1), fixes signs
 // (largest component positive) and computes the residuals; false with a message if K is
 // indefinite or singular or too few elastic modes were found.
@@ -253,7 +272,7 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     result->message = "found only " + std::to_string(ne) + " elastic modes of " + std::to_string(options.num_modes);
     return false;
   }
-  return true;
+  return residuals_plausible(options, result);
 }
 
 }  // namespace
