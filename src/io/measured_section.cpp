@@ -248,7 +248,23 @@ void Loader::read_effects(const Field& f) {
       fail(text_field, std::string(e.what()) +
                            " (an effect is a change without its value, e.g. joint2.kry or point_mass@top:mass)");
     }
+    check_effect_bounds(fs, effect);
     problem_.effects.push_back(effect);
+  }
+}
+
+// A bound outside its property's range (a mass's upper bound of -1) would fail only when the
+// diagnosis or `calibrate --add` reaches it, after the calibrations before; it fails here, at its line.
+void Loader::check_effect_bounds(const Fields& fs, const DeclaredEffect& effect) const {
+  for (const auto& [key, bound] : {std::pair{"lower", effect.lower}, std::pair{"upper", effect.upper}}) {
+    if (!bound) continue;
+    try {
+      describe_model_change(model_, parse_model_change(effect.effect + "=" + format_round_trip(*bound)));
+    } catch (const std::invalid_argument& e) {
+      if (dynamic_cast<const ProblemError*>(&e)) throw;
+      fail(*fs.find(key), std::string(key) + " " + format(*bound) + " is outside the range of '" + effect.effect +
+                              "': " + e.what());
+    }
   }
 }
 

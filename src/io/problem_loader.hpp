@@ -147,6 +147,7 @@ class Loader {
   void read_options(const Field& f);
   void read_measured(const Field& f);
   void read_effects(const Field& f);
+  void check_effect_bounds(const Fields& fs, const DeclaredEffect& effect) const;
   void read_measured_file(const Field& f);
   void read_data_sensors(const Field& f);
   SyntheticTruth recorded_truth(const Field& f);
