@@ -16,16 +16,10 @@ namespace {
 
 double parse_value(const std::string& text, const std::string& what) {
   if (text.empty()) throw InputError(what + ": no value after '='; expected NAME=VALUE with a finite number");
-  size_t used = 0;
-  double v = 0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != text.size() || !std::isfinite(v))
+  const std::optional<double> v = finite_number(text);
+  if (!v)
     throw InputError(what + ": '" + text.substr(0, 40) + (text.size() > 40 ? "...'" : "'") + " is not a finite number");
-  return v;
+  return *v;
 }
 
 Vector from_report(const Problem& problem, const std::string& path) {
@@ -61,6 +55,18 @@ Vector from_report(const Problem& problem, const std::string& path) {
 }
 
 }  // namespace
+
+std::optional<double> finite_number(const std::string& text) {
+  size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (used != text.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
 
 Problem load_problem_with_measurements(const std::string& path, const LoadOptions& options) {
   Problem problem = load_problem(path, options);

@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,9 @@ void print_warnings(const Problem& problem);
 /// problem was read from (Problem::source_files).
 void write_json(const std::string& path, const nlohmann::json& json, const Problem& problem);
 /// JSON has no NaN or infinity: a number that is not finite (unknown, undefined) is written as null.
+/// `text` as a number when all of it is one and it is finite; nullopt otherwise (NaN, inf, "1x").
+std::optional<double> finite_number(const std::string& text);
+
 nlohmann::json json_number(double value);
 
 /// Adds `hidden_effect: [{name, description, value, nominal_value}]` to `json` when the truth the

@@ -2,9 +2,11 @@
 // Internal: validators for command-line options beyond CLI11's own.
 #include <CLI/CLI.hpp>
 
-#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
+
+#include "cli/cli_common.hpp"
 
 namespace modalcal::cli {
 
@@ -20,14 +22,8 @@ inline CLI::Validator FiniteRange(double min, double max) {
   const std::string range = text_of(min) + " to " + text_of(max);
   return CLI::Validator(
       [min, max, range](std::string& text) -> std::string {
-        double v = NAN;
-        size_t used = 0;
-        try {
-          v = std::stod(text, &used);
-        } catch (const std::exception&) {
-          used = 0;
-        }
-        if (used == text.size() && std::isfinite(v) && v >= min && v <= max) return "";
+        const std::optional<double> v = finite_number(text);
+        if (v && *v >= min && *v <= max) return "";
         return "Value " + text + " not in range " + range;
       },
       "[" + range + "]");
