@@ -36,5 +36,44 @@ TEST(Output, RefusesToOverwriteAnInput) {
   EXPECT_EQ(text.str(), "name: x\n");
 }
 
+// A name of 250 characters is legal; the hidden temporary beside it ('.' + name + ".XXXXXX") would
+// not be, so the write takes a shorter temporary and leaves none behind.
+TEST(Output, ANameNearTheFileSystemsLimitIsWritten) {
+  const std::filesystem::path dir = std::filesystem::path(testing::WriteTempFile("keep", "")).parent_path();
+  const std::string path = (dir / (std::string(245, 'n') + ".json")).string();
+  EXPECT_NO_THROW(check_output_path(path, {}));
+  write_file_atomically(path, "{}\n", {});
+  EXPECT_EQ(testing::ReadFile(path), "{}\n");
+  for (const auto& entry : std::filesystem::directory_iterator(dir))
+    EXPECT_NE(entry.path().filename().string()[0], '.') << "temporary left behind: " << entry.path();
+}
+
+// What only the write would find, found before a command computes anything (exit 2 from the CLI).
+TEST(Output, AnOutputThatCannotBeCreatedIsRefusedUpFront) {
+  const std::string folder = std::filesystem::path(testing::WriteTempFile("keep", "")).parent_path().string();
+  try {
+    check_output_path(folder + "/" + std::string(300, 'n') + ".json", {});
+    ADD_FAILURE() << "a 305-character name was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("characters the file system allows"), std::string::npos) << e.what();
+  }
+  try {
+    check_output_path("/proc/modalcal-output-check.json", {});
+    ADD_FAILURE() << "a file under /proc was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no file can be created in '/proc'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(check_output_path(folder, {}), std::invalid_argument);  // a directory
+  EXPECT_NO_THROW(check_output_path("/dev/null", {}));                // written through, not created
+}
+
+TEST(Output, TheCliRefusesAnUncreatableOutputBeforeTheRun) {
+  const std::string problem = testing::WriteTempFile("bar.yaml", testing::CantileverBar() + "options: {num_modes: 2}\n");
+  const testing::CliRun run = testing::RunCli("modes " + problem + " --json /proc/modalcal-output-check.json");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("no file can be created in '/proc'"), std::string::npos) << run.output;
+  EXPECT_EQ(run.output.find("DOFs"), std::string::npos) << "the model was solved first:\n" << run.output;
+}
+
 }  // namespace
 }  // namespace modalcal

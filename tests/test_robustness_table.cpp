@@ -286,6 +286,10 @@ std::vector<Row> Rows() {
        "modes <dir>/plain.yaml --set bar.density=-1", 2, "block 'bar': density is negative"},
       {"set-poisson-above-half", "`--set bar.nu=0.7`", {{"plain.yaml", PlainBar()}},
        "modes <dir>/plain.yaml --set bar.nu=0.7", 2, "block 'bar': Poisson's ratio 0.700000 is outside (-1, 0.5)"},
+      {"set-negative-parameter", "`--set E=-5` where parameter E sets the modulus", {{"bar.yaml", Bar()}},
+       "modes <dir>/bar.yaml --set E=-5", 2,
+       "parameter 'E' = -5 (from the problem, --params or --set) is not a value the model can take: block 'bar': "
+       "Young's modulus E must be positive, got -5"},
       {"num-modes-zero", "`--num-modes 0`", {{"bar.yaml", Bar()}}, "modes <dir>/bar.yaml --num-modes 0", 2,
        "--num-modes: '0' must be positive"},
       {"max-iterations-negative", "`--max-iterations -1`", {{"bar.yaml", Bar()}},

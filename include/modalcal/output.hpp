@@ -14,8 +14,10 @@ namespace modalcal {
 /// For writers of several files, which check every target before writing the first.
 MODALCAL_EXPORT void check_not_input(const std::string& path, const std::vector<std::string>& inputs);
 
-/// check_not_input(), and that the folder `path` would be written in exists: what a command
-/// checks of each output before it runs, so that a bad output name costs no computation.
+/// check_not_input(), and that `path` can be written: its folder exists and takes a new file
+/// (one is created there and removed), its name is within the file system's limit, and it is
+/// not a directory. What a command checks of each output before it runs, so that a bad output
+/// name costs no computation.
 /// \throws std::invalid_argument naming the path and the cause.
 MODALCAL_EXPORT void check_output_path(const std::string& path, const std::vector<std::string>& inputs);
 

@@ -12,6 +12,7 @@
 
 #include "cli/calibration_report.hpp"
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/effects.hpp"
@@ -352,7 +353,7 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
       ->check(CLI::IsMember({"none", "linear", "log"}));
   cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
-  cmd->add_option("--json", args->json, "write the report as JSON to this file");
+  cmd->add_option("--json", args->json, "write the report as JSON to this file")->check(OutputFile());
   cmd->add_option("--csv", args->csv,
                   "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
   cmd->add_option("--history-plot", args->history_plot,
@@ -380,7 +381,7 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
       ->default_str(args->uncertainty);
   cmd->add_option("--uncertainty-plot", args->uncertainty_plot,
                   "plot the parameters' correlation matrix to this .png or .svg file, and their profiles (where "
-                  "profiled) beside it as FILE_profiles.png");
+                  "profiled) beside it as FILE_profiles.png")->check(OutputFile());
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")

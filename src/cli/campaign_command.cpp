@@ -344,9 +344,10 @@ void register_campaign_command(CLI::App& app, int* exit_code) {
                   "instead of data: the --json files of campaigns run in parts (e.g. one per data set, as a batch "
                   "array job); their runs are summarized in the order given")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--json", args->json, "write every run and the summary as JSON to this file");
+  cmd->add_option("--json", args->json, "write every run and the summary as JSON to this file")->check(OutputFile());
   cmd->add_option("--plot", args->plot,
-                  "draw the calibrated values (.png or .svg): each parameter's histogram and every pair's scatter");
+                  "draw the calibrated values (.png or .svg): each parameter's histogram and every pair's scatter")
+      ->check(OutputFile());
   cmd->add_option("--significance", args->significance,
                   "level of the test that a parameter varies between tests (default 0.01)")
       ->check(FiniteRange(1e-6, 0.5));

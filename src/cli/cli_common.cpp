@@ -74,6 +74,26 @@ Problem load_problem_with_measurements(const std::string& path, const LoadOption
   return problem;
 }
 
+// A value the model cannot take (a negative modulus, a Poisson's ratio of 0.5) would otherwise fail
+// later as a factorization error, exit 1, naming no parameter. Set in order, the first parameter
+// that makes the model invalid is the one named.
+namespace {
+void check_parameter_values(const Problem& problem, const Vector& p) {
+  Model model = problem.model;
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    const double value = p[static_cast<Eigen::Index>(j)];
+    for (PropertyId id : q.targets) model.properties[id].value = value;
+    try {
+      model.validate();
+    } catch (const std::invalid_argument& e) {
+      throw InputError("parameter '" + q.name + "' = " + format_round_trip(value) +
+                       " (from the problem, --params or --set) is not a value the model can take: " + e.what());
+    }
+  }
+}
+}  // namespace
+
 Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
   Vector p;
   if (choice.source == "initial") {
@@ -108,6 +128,7 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
         if (t == id) throw InputError("--set " + name + ": this property is set by parameter '" + q.name + "'; set that instead");
     problem->model.properties[id].value = value;
   }
+  check_parameter_values(*problem, p);
   return p;
 }
 

@@ -4,9 +4,11 @@
 
 #include <cstdio>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "cli/cli_common.hpp"
+#include "modalcal/output.hpp"
 
 namespace modalcal::cli {
 
@@ -40,6 +42,23 @@ inline CLI::Validator SeedText() {
         return "seed " + text + " is not an integer from 0 to 18446744073709551615";
       },
       "UINT64");
+}
+
+/// An output file that can be written: its folder exists and takes a new file, its name is within
+/// the file system's limit (check_output_path()). Checked when the options are parsed, so that
+/// every command refuses it before it computes anything; whether it names an input is checked
+/// once the inputs are known.
+inline CLI::Validator OutputFile() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        try {
+          check_output_path(text, {});
+        } catch (const std::invalid_argument& e) {
+          return e.what();
+        }
+        return "";
+      },
+      "FILE");
 }
 
 }  // namespace modalcal::cli

@@ -230,7 +230,7 @@ void register_compare_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--params", args->params.source,
                   "parameter values: initial (default), truth, or a calibration report JSON (its final values)");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
-  cmd->add_option("--json", args->json, "write the comparison as JSON to this file");
+  cmd->add_option("--json", args->json, "write the comparison as JSON to this file")->check(OutputFile());
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
       ->check(positive_number());
   cmd->add_option("--unpaired-mac", args->unpaired_mac, "pairs with a lower MAC are listed as unpaired (default 0.5)")

@@ -561,19 +561,19 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                 "keep every accepted effect (no backward pass dropping those the others explain)");
   cmd->add_option("--add", args->add,
                   "start from the model with this effect, e.g. joint2.kry or point_mass@top:mass (repeatable)");
-  cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file");
+  cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file")->check(OutputFile());
   cmd->add_option("--plot", args->plot,
                   "plot the chi-square per step against the noise band, and each mode's frequency error before "
-                  "and after (.png or .svg)");
+                  "and after (.png or .svg)")->check(OutputFile());
   cmd->add_option("--write-problem", args->write_problem,
                   "write the problem with the kept effects enabled and the final values as starts (YAML), for "
-                  "calibrate");
+                  "calibrate")->check(OutputFile());
   cmd->add_option("--vtu", args->vtu,
                   "write the screen map and the localization (diagnose.vtu, diagnose_sensors.vtu, .pvd) to this "
                   "directory");
   cmd->add_option("--map", args->map,
                   "draw the screen map (.png or .svg): where an added mass, spring or region scale would remove "
-                  "the most chi-square");
+                  "the most chi-square")->check(OutputFile());
   cmd->add_option("--region-size", args->region_size,
                   "size of the block regions screened, in element sizes (default 3)")
       ->check(finite_number())

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/fullspace.hpp"
@@ -409,7 +410,7 @@ void register_full_vs_reduced_study(CLI::App* study, int* exit_code) {
   cmd->add_option("--success-tolerance", args->success_tolerance, "largest parameter error of a success (default 1e-4)")
       ->check(positive_number());
   cmd->add_option("--out", args->out, "directory for the plot (default: out)");
-  cmd->add_option("--json", args->json, "write the study as JSON to this file");
+  cmd->add_option("--json", args->json, "write the study as JSON to this file")->check(OutputFile());
   cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   cmd->add_option("--jobs", args->jobs,
                   "runs at a time, each with one BLAS thread (default 1); successes and counts are unchanged, "

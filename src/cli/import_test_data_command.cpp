@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/test_data.hpp"
@@ -128,7 +129,8 @@ void register_import_test_data_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--scale-length", args->lengths.scale, "multiply the file's lengths by this factor")
       ->check(positive_number())
       ->excludes(unit);
-  cmd->add_option("--csv", args->csv, "write the modes as CSV (mode,frequency_hz,node,direction,value) to this file");
+  cmd->add_option("--csv", args->csv, "write the modes as CSV (mode,frequency_hz,node,direction,value) to this file")
+      ->check(OutputFile());
   cmd->callback([args, exit_code] { *exit_code = run_import(*args); });
 }
 

@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/localization.hpp"
 #include "modalcal/vtu.hpp"
@@ -96,7 +97,8 @@ void register_localize_command(CLI::App& app, int* exit_code) {
                   "Tikhonov weight of the expansion, relative to the largest singular value (0: SEREP)")
       ->check(finite_number());
   cmd->add_option("--rows", args->rows, "regions to print")->check(positive_number());
-  cmd->add_option("--json", args->json, "write the expansion and the ranking as JSON to this file");
+  cmd->add_option("--json", args->json, "write the expansion and the ranking as JSON to this file")
+      ->check(OutputFile());
   cmd->add_option("--vtu", args->vtu, "write localize.vtu, localize_sensors.vtu and localize.pvd to this directory");
   cmd->callback([args, exit_code] { *exit_code = run_localize(*args); });
 }

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
@@ -131,7 +132,7 @@ void register_modes_command(CLI::App& app, int* exit_code) {
   cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--params", args->params.source, "parameter values: initial, truth, or a calibration report JSON");
   cmd->add_option("--set", args->params.assignments, "NAME=VALUE for a parameter or a model property (repeatable)");
-  cmd->add_option("--json", args->json, "write the results as JSON to this file");
+  cmd->add_option("--json", args->json, "write the results as JSON to this file")->check(OutputFile());
   cmd->add_option("--vtu", args->vtu, "write modes.vtu (mesh, blocks, properties, mode shapes), modes_sensors.vtu and modes.pvd to this directory");
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
       ->check(positive_number());

@@ -14,6 +14,7 @@
 
 #include "cli/calibration_report.hpp"
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
 #include "modalcal/identifiability.hpp"
@@ -197,7 +198,7 @@ void register_study_command(CLI::App& app, int* exit_code) {
   auto common = [](CLI::App* cmd, StudyArgs* args) {
     cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
     cmd->add_option("--out", args->out, "directory for CSV and plots (default: out)");
-    cmd->add_option("--json", args->json, "write the study's figures as JSON to this file");
+    cmd->add_option("--json", args->json, "write the study's figures as JSON to this file")->check(OutputFile());
     cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
   };
   auto bounds = std::make_shared<StudyArgs>();

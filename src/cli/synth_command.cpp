@@ -152,7 +152,7 @@ void register_synth_command(CLI::App& app, int* exit_code) {
       ->check(SeedText());
   cmd->add_option("--refine", args->refine, "mesh refinement factor for the nominal and a truth problem file")
       ->check(positive_number());
-  cmd->add_option("-o,--output", args->output, "data file to write (YAML)")->required();
+  cmd->add_option("-o,--output", args->output, "data file to write (YAML)")->required()->check(OutputFile());
   cmd->callback([args, exit_code] { *exit_code = run_synth(*args); });
 }
 

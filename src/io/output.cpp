@@ -21,14 +21,60 @@ void check_not_input(const std::string& path, const std::vector<std::string>& in
                                   "); choose another output name");
 }
 
-void check_output_path(const std::string& path, const std::vector<std::string>& inputs) {
-  check_not_input(path, inputs);
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+namespace {
+
+fs::path folder_of(const fs::path& target) { return target.has_parent_path() ? target.parent_path() : fs::path("."); }
+
+void check_folder_exists(const std::string& path) {
+  const fs::path dir = folder_of(path);
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
     throw std::invalid_argument("cannot write '" + path + "': directory '" + dir.string() +
                                 "' does not exist; create it first");
+}
+
+size_t longest_name(const fs::path& dir) {
+  const long n = ::pathconf(dir.c_str(), _PC_NAME_MAX);
+  return n > 0 ? static_cast<size_t>(n) : 255;
+}
+
+/// The temporary file beside the target: the target's name, hidden, with mkstemp's six
+/// characters; a short one when that would pass the file system's limit on a name.
+std::string temporary_template(const fs::path& target) {
+  const fs::path dir = folder_of(target);
+  const std::string name = "." + target.filename().string() + ".XXXXXX";
+  return (dir / (name.size() <= longest_name(dir) ? name : std::string(".modalcal.XXXXXX"))).string();
+}
+
+bool is_special_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status status = fs::symlink_status(path, ec);
+  return fs::exists(status) && !fs::is_regular_file(status);
+}
+
+}  // namespace
+
+// Creating (and removing) the temporary file the write will use tells, before any computation,
+// what only the write would otherwise find: a folder that takes no new files (read-only, /proc).
+void check_output_path(const std::string& path, const std::vector<std::string>& inputs) {
+  check_not_input(path, inputs);
+  check_folder_exists(path);
+  const fs::path target(path);
+  const size_t limit = longest_name(folder_of(target));
+  if (target.filename().string().size() > limit)
+    throw std::invalid_argument("cannot write '" + path + "': the file name is longer than the " +
+                                std::to_string(limit) + " characters the file system allows");
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
+  if (is_special_file(path)) return;  // written in place, as a redirection would
+  std::string probe = temporary_template(target);
+  const int fd = mkstemp(probe.data());
+  if (fd < 0)
+    throw std::invalid_argument("cannot write '" + path + "': no file can be created in '" +
+                                folder_of(target).string() + "': " + std::strerror(errno));
+  ::close(fd);
+  std::remove(probe.c_str());
 }
 
 namespace {
@@ -47,15 +93,13 @@ void write_in_place(const std::string& path, const std::string& content) {
 
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs) {
-  check_output_path(path, inputs);
+  check_not_input(path, inputs);
+  check_folder_exists(path);
   std::error_code ec;
   if (fs::is_directory(path, ec))
     throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
-  const fs::file_status status = fs::symlink_status(path, ec);
-  if (fs::exists(status) && !fs::is_regular_file(status)) return write_in_place(path, content);
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  std::string temp = (dir / ("." + target.filename().string() + ".XXXXXX")).string();
+  if (is_special_file(path)) return write_in_place(path, content);
+  std::string temp = temporary_template(path);
   const int fd = mkstemp(temp.data());
   if (fd < 0)
     throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
