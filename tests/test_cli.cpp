@@ -96,11 +96,14 @@ TEST(Cli, BadInputIsNamedAndExitsWithTwo) {
   EXPECT_NE(run.output.find("broken.yaml:"), std::string::npos) << run.output;
 }
 
-TEST(Cli, NegativeModulusIsANumericalFailureWithLikelyCause) {
+// A modulus the model cannot take is the user's input, refused before any solve, naming the
+// parameter and the block it sets.
+TEST(Cli, NegativeModulusParameterIsBadInputNamingIt) {
   const std::string problem = WriteTempFile("bar.yaml", kBar);
   const CliRun run = RunCli("modes " + problem + " --set E=-1000");
-  EXPECT_EQ(run.exit_code, 1) << run.output;
-  EXPECT_NE(run.output.find("negative"), std::string::npos) << run.output;
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("parameter 'E' = -1000"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("must be positive"), std::string::npos) << run.output;
 }
 
 TEST(Cli, NeverOverwritesTheProblemFile) {
