@@ -175,6 +175,8 @@ std::vector<Row> Rows() {
   const std::string csv = BarCsv();
   const std::string full_msh = OneHexMsh();
   const std::string uff = ReadFile(testing::SourcePath("tests/data/uff/uff55_translation.uff"));
+  std::string negative_uff = uff;  // its first mode at -10 Hz
+  negative_uff.replace(negative_uff.find("\n  1.00000e+01  0.00000e+00"), 14, "\n -1.00000e+01");
   const std::string data_yaml = "modes:\n  - {frequency_hz: 1.0}\n  - {frequency_hz: 3.0}\n";
   const std::string report_json = R"({"parameters": [{"name": "E", "final": 900}]})";
   const std::string read_everything =
@@ -541,6 +543,9 @@ std::vector<Row> Rows() {
       {"uff-binary-58b", "a binary function (58b) between two modes: skipped by its byte count",
        {{"frf.uff", UffWithBinaryFunction()}}, "import-test-data <dir>/frf.uff", 0, "bytes skipped", nullptr,
        ModesAfterTheFrfKeepTheirLines},
+      {"uff-negative-frequency", "a universal file's mode at -10 Hz: listed, with a warning",
+       {{"negative.uff", negative_uff}}, "import-test-data <dir>/negative.uff", 0,
+       "warning: mode 1 (line 2): -10 Hz: measured frequencies must be positive; a problem cannot select it"},
       {"uff-device", "`/dev/zero` as test data", {}, "import-test-data /dev/zero", 2,
        "'/dev/zero' is not a regular file (a device, FIFO or socket) and cannot be a test-data file"},
       {"test-data-missing", "test data that does not exist", {}, "import-test-data <dir>/nosuch.uff", 2,

@@ -9,7 +9,9 @@
 #include <stdexcept>
 
 #include "io/input_file.hpp"
+#include "io/measured_test_data.hpp"
 #include "support/text_util.hpp"
+#include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
 
 namespace modalcal {
@@ -62,13 +64,29 @@ std::vector<long> TestData::node_ids() const {
   return ids;
 }
 
+namespace {
+
+// A listing (import-test-data) shows what the file holds; a problem that selects such a mode is
+// refused at its line. The warning says so before a problem is written around it.
+void warn_of_unusable_frequencies(TestData* data) {
+  for (const TestMode& m : data->modes)
+    if (const std::string reason = detail::unusable_frequency(m.frequency_hz); !reason.empty())
+      data->warnings.push_back("mode " + std::to_string(m.number) + " (line " + std::to_string(m.line) + "): " +
+                               format_round_trip(m.frequency_hz) + " Hz: " + reason +
+                               "; a problem cannot select it");
+}
+
+}  // namespace
+
 TestData read_test_data(const std::string& path) {
   if (const std::string reason = detail::unreadable_reason(path, "test-data file"); !reason.empty())
     throw ProblemError(path, 0, reason);
   std::string extension = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return extension == ".csv" ? read_test_csv(path) : read_uff(path);
+  TestData data = extension == ".csv" ? read_test_csv(path) : read_uff(path);
+  warn_of_unusable_frequencies(&data);
+  return data;
 }
 
 RealShape best_real_shape(const Eigen::VectorXcd& shape) {
