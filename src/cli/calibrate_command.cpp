@@ -357,7 +357,8 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--csv", args->csv,
                   "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
   cmd->add_option("--history-plot", args->history_plot,
-                  "plot objective and gradient norm against iteration to this .png or .svg file");
+                  "plot objective and gradient norm against iteration to this .png or .svg file")
+      ->check(OutputFile());
   cmd->add_option("--vtu", args->vtu,
                   "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
                   "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");

@@ -236,8 +236,10 @@ void register_compare_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--unpaired-mac", args->unpaired_mac, "pairs with a lower MAC are listed as unpaired (default 0.5)")
       ->check(finite_number())
       ->check(FiniteRange(0.0, 1.0));
-  cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file");
-  cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file");
+  cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file")
+      ->check(OutputFile());
+  cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file")
+      ->check(OutputFile());
   cmd->callback([args, exit_code] { *exit_code = run_compare(*args); });
 }
 
