@@ -25,12 +25,16 @@ namespace {
 
 fs::path folder_of(const fs::path& target) { return target.has_parent_path() ? target.parent_path() : fs::path("."); }
 
-void check_folder_exists(const std::string& path) {
+/// What both the check and the write require: not an input, in a folder that exists, not a folder.
+void check_target(const std::string& path, const std::vector<std::string>& inputs) {
+  check_not_input(path, inputs);
   const fs::path dir = folder_of(path);
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
     throw std::invalid_argument("cannot write '" + path + "': directory '" + dir.string() +
                                 "' does not exist; create it first");
+  if (fs::is_directory(path, ec))
+    throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
 }
 
 size_t longest_name(const fs::path& dir) {
@@ -57,16 +61,12 @@ bool is_special_file(const std::string& path) {
 // Creating (and removing) the temporary file the write will use tells, before any computation,
 // what only the write would otherwise find: a folder that takes no new files (read-only, /proc).
 void check_output_path(const std::string& path, const std::vector<std::string>& inputs) {
-  check_not_input(path, inputs);
-  check_folder_exists(path);
+  check_target(path, inputs);
   const fs::path target(path);
   const size_t limit = longest_name(folder_of(target));
   if (target.filename().string().size() > limit)
     throw std::invalid_argument("cannot write '" + path + "': the file name is longer than the " +
                                 std::to_string(limit) + " characters the file system allows");
-  std::error_code ec;
-  if (fs::is_directory(path, ec))
-    throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
   if (is_special_file(path)) return;  // written in place, as a redirection would
   std::string probe = temporary_template(target);
   const int fd = mkstemp(probe.data());
@@ -93,11 +93,7 @@ void write_in_place(const std::string& path, const std::string& content) {
 
 void write_file_atomically(const std::string& path, const std::string& content,
                            const std::vector<std::string>& inputs) {
-  check_not_input(path, inputs);
-  check_folder_exists(path);
-  std::error_code ec;
-  if (fs::is_directory(path, ec))
-    throw std::invalid_argument("cannot write '" + path + "': it is a directory; give a file name");
+  check_target(path, inputs);
   if (is_special_file(path)) return write_in_place(path, content);
   std::string temp = temporary_template(path);
   const int fd = mkstemp(temp.data());
