@@ -462,6 +462,31 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_NE(run.output.find("no property 'nosuch'"), std::string::npos) << run.output;
 }
 
+// The loop started from an enabled effect that releases a support (which, once released, could
+// not be described again on the changed model); the same effect added again is bad input; and
+// with no effect kept, --write-problem still writes a problem that calibrate loads.
+TEST(Cli, DiagnoseStartsFromAnEnabledSupportAndWritesAProblemWithNoEffectKept) {
+  const std::string study = testing::WriteTipMassStudy();
+  const std::string dir = std::filesystem::path(study).parent_path().string();
+  const std::string support = WriteTempFile(
+      "support.yaml", kSensedBar + "measured: {file: data.yaml}\neffects:\n  - {effect: \"support@root:kx\", enable: true}\n");
+  CliRun run = RunCli("diagnose " + support + " --quiet --max-steps 0 --mesh-check 0 --json " + dir + "/support.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json d = nlohmann::json::parse(ReadFile(dir + "/support.json"));
+  EXPECT_EQ(d["started_with"], nlohmann::json::array({"support_root.kx"}));
+  run = RunCli("diagnose " + support + " --quiet --max-steps 0 --add support@root:kx");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("is support_root.kx, which the problem's enabled effects or an earlier --add already add"),
+            std::string::npos)
+      << run.output;
+
+  run = RunCli("diagnose " + study + " --quiet --max-steps 0 --mesh-check 0 --write-problem " + dir + "/none.yaml");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(ReadFile(dir + "/none.yaml").find("effects: []"), std::string::npos) << ReadFile(dir + "/none.yaml");
+  run = RunCli("calibrate " + dir + "/none.yaml --method reduced-lbfgs --quiet");
+  EXPECT_EQ(run.exit_code, 0) << run.output << ReadFile(dir + "/none.yaml");
+}
+
 TEST(Cli, SynthThenCompareAndCalibrateShowTheHiddenEffect) {
   const std::string nominal = WriteTempFile("nominal.yaml", kSensedBar);
   const std::string dir = std::filesystem::path(nominal).parent_path().string();

@@ -237,6 +237,15 @@ effects:
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("is not fixed along x"), std::string::npos) << e.what();
   }
+  // A start value outside the candidate's range is refused, not moved onto the bound.
+  for (const char* outside : {"point_mass@tip:mass=-1", "support@root:ky=0", "j.krx=1e300"}) {
+    try {
+      make_candidate(problem, outside);
+      ADD_FAILURE() << outside << ": expected an error";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("lies outside the effect's range"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(EffectCandidates, ProblemWithEffectsAddsThemAsParameters) {
@@ -262,6 +271,22 @@ TEST(EffectCandidates, ProblemWithEffectsAddsThemAsParameters) {
   ASSERT_TRUE(e0.ok && e1.ok);
   EXPECT_LT(e1.pairs[0].model_hz, e0.pairs[0].model_hz);  // mass at the tip lowers the first mode
   EXPECT_THROW(problem_with_effects(problem, {krx}, {}), std::invalid_argument);
+  // A declared effect that became a parameter is declared no more.
+  for (const DeclaredEffect& d : with.effects) EXPECT_NE(d.effect, "j.krx");
+
+  // An enabled support: once its fixity is released the change could not be described again on
+  // the changed model, so the candidates of the model with it must not try.
+  Problem supported = problem;
+  DeclaredEffect support;
+  support.effect = "support@root:kx";
+  support.enable = true;
+  supported.effects.push_back(support);
+  const std::vector<EffectCandidate> enabled = enabled_candidates(supported);
+  std::vector<double> values;
+  for (const EffectCandidate& c : enabled) values.push_back(c.upper);
+  const Problem released = problem_with_effects(supported, enabled, values);
+  EXPECT_GE(released.find_parameter("support_root.kx"), 0);
+  EXPECT_NO_THROW(generate_candidates(released));
 }
 
 TEST(ChiSquare, CriticalValuesAndNoiseWeights) {

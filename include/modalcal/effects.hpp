@@ -171,7 +171,8 @@ MODALCAL_EXPORT std::vector<EffectCandidate> generate_candidates(const Problem& 
 /// "support@post_bottom:kx") or with a start value ("joint2.kry=1e5"), with the defaults of the
 /// table above; or the candidate of that name among generate_candidates() (e.g.
 /// "added_mass_node123.mass"). Marked declared.
-/// \throws std::invalid_argument naming the text and why it does not apply to the model.
+/// \throws std::invalid_argument naming the text and why it does not apply to the model, or
+/// that its start value lies outside the candidate's bounds.
 MODALCAL_EXPORT EffectCandidate make_candidate(const Problem& problem, const std::string& text,
                                                const CandidateOptions& options = {});
 

@@ -304,13 +304,7 @@ int run_calibrate(const CalibrateArgs& args) {
   const Vector p0 = choose_parameters(&problem, args.start) * args.start_factor;
   if (!args.no_bounds) require_start_within_bounds(problem, p0);
   std::vector<EffectCandidate> effects = enabled_candidates(problem);
-  for (const std::string& text : args.add) {
-    try {
-      effects.push_back(make_candidate(problem, text));
-    } catch (const std::invalid_argument& e) {
-      throw InputError(std::string("--add: ") + e.what());
-    }
-  }
+  append_added_effects(problem, args.add, &effects);
   if (!effects.empty()) return calibrate_with_effects(problem, p0, effects, args, objective_options);
   Objective objective(problem, objective_options);
   Calibrated result = calibrate(objective, p0, args);

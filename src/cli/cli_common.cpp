@@ -153,6 +153,20 @@ void require_parameters(const Problem& problem) {
                      ": add a 'parameters:' section naming what to calibrate (docs/problem-format.md)");
 }
 
+void append_added_effects(const Problem& problem, const std::vector<std::string>& texts,
+                          std::vector<EffectCandidate>* effects) {
+  for (const std::string& text : texts) {
+    try {
+      effects->push_back(make_candidate(problem, text));
+    } catch (const std::invalid_argument& e) {
+      throw InputError(std::string("--add: ") + e.what());
+    }
+    const std::string& name = effects->back().name;
+    if (std::count_if(effects->begin(), effects->end(), [&](const EffectCandidate& c) { return c.name == name; }) > 1)
+      throw InputError("--add: effect '" + text + "' is " + name + ", which the problem's enabled effects or an earlier --add already add");
+  }
+}
+
 void require_start_within_bounds(const Problem& problem, const Vector& start) {
   for (size_t j = 0; j < problem.parameters.size(); ++j) {
     const Parameter& q = problem.parameters[j];

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "modalcal/effects.hpp"
 #include "modalcal/localization.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/problem_file.hpp"
@@ -48,6 +49,13 @@ void require_parameters(const Problem& problem);
 /// --start-factor) lies outside its bounds: a bounded calibration would move it onto the bound
 /// without a word.
 void require_start_within_bounds(const Problem& problem, const Vector& start);
+
+/// Appends the effects of --add's `texts` (make_candidate()) to `effects`.
+/// \throws InputError naming a text that does not apply to the model, or that names an effect
+/// already in `effects` (one effect cannot be calibrated as two parameters), e.g. the problem's
+/// enabled ones.
+void append_added_effects(const Problem& problem, const std::vector<std::string>& texts,
+                          std::vector<EffectCandidate>* effects);
 
 /// Creates the output directory `dir` (of option `option`, e.g. "--out") if need be, before any
 /// computation. \throws InputError naming it if it cannot be a directory.

@@ -376,14 +376,14 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
             (q.scaling == Scaling::Linear ? ", reference: " + format_round_trip(q.reference) : "") +
             (q.truth ? ", truth: " + format_round_trip(*q.truth) : "") + "}\n";
   }
-  text += "effects:\n";
+  std::string effects;
   const size_t np = problem.parameters.size();
   for (size_t k = 0; k < d.effects.size(); ++k) {
     const EffectCandidate& c = d.effects[k];
     std::string change = to_string(c.change);
     change = change.substr(0, change.rfind('='));  // an effect is a change without its value
     const double value = std::clamp(d.final_parameters[static_cast<Eigen::Index>(np + k)], c.lower, c.upper);
-    text += "  - {effect: " + yaml_quoted(change) + ", description: " + yaml_quoted(c.description) +
+    effects += "  - {effect: " + yaml_quoted(change) + ", description: " + yaml_quoted(c.description) +
             ", initial: " + format_round_trip(value) + ", lower: " + format_round_trip(c.lower) +
             ", upper: " + format_round_trip(c.upper) + ", enable: true}\n";
   }
@@ -391,8 +391,8 @@ std::string problem_with_effects_yaml(const Problem& problem, const std::string&
     if (!e.enable && std::none_of(d.effects.begin(), d.effects.end(), [&](const EffectCandidate& c) {
           return c.name == make_candidate(problem, e.effect).name;
         }))
-      text += "  - {effect: " + yaml_quoted(e.effect) + ", description: " + yaml_quoted(e.description) + "}\n";
-  return text;
+      effects += "  - {effect: " + yaml_quoted(e.effect) + ", description: " + yaml_quoted(e.description) + "}\n";
+  return text + (effects.empty() ? "effects: []\n" : "effects:\n" + effects);  // a bare "effects:" is no list
 }
 
 /// The diagnosis's options from the command line (the effects to add and the finer mesh apart).
@@ -496,13 +496,10 @@ int run_diagnose(const DiagnoseArgs& args) {
               problem.measured.size(),
               problem.measurement_noise ? "" : "; no stated noise (measured: noise:), so no chi-square test");
   std::fflush(stdout);
-  for (const std::string& text : args.add) {
-    try {
-      options.added.push_back(make_candidate(problem, text));
-    } catch (const std::invalid_argument& e) {
-      throw InputError(std::string("--add: ") + e.what());
-    }
-  }
+  std::vector<EffectCandidate> effects = enabled_candidates(problem, options.candidates);  // --add repeats none
+  const size_t enabled = effects.size();
+  append_added_effects(problem, args.add, &effects);
+  options.added.assign(effects.begin() + static_cast<std::ptrdiff_t>(enabled), effects.end());
   const std::optional<Problem> finer = finer_mesh_problem(args, problem);
   if (finer) options.finer_mesh = &*finer;
   if (farm.size() > 1)

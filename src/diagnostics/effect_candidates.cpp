@@ -480,22 +480,28 @@ ModelChange parse_effect_text(const std::string& text, std::optional<double>* va
   return change;
 }
 
+/// The name of the property a declared effect's text sets on `model` ("support_root.kx" for
+/// "support@root:kx"), or none when its change does not apply to `model`.
+std::optional<std::string> declared_effect_name(const Model& model, const std::string& text) {
+  std::string name = text.substr(0, text.rfind('=') == std::string::npos ? text.size() : text.rfind('='));
+  name = name.substr(0, name.find_last_not_of(" \t") + 1);
+  if (name.find('@') == std::string::npos) return name;
+  try {
+    std::optional<double> value;
+    return describe_model_change(model, parse_effect_text(text, &value)).name;
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;  // make_candidate says why
+  }
+}
+
 /// Whether a declared effect is already in the model as a calibration parameter's target (an
 /// effect a diagnosis accepted, or one enabled and added): it is then no longer a candidate.
 bool already_a_parameter(const Problem& problem, const std::string& text) {
-  std::string name = text.substr(0, text.rfind('=') == std::string::npos ? text.size() : text.rfind('='));
-  name = name.substr(0, name.find_last_not_of(" \t") + 1);
-  if (name.find('@') != std::string::npos) {
-    try {
-      std::optional<double> value;
-      name = describe_model_change(problem.model, parse_effect_text(text, &value)).name;
-    } catch (const std::invalid_argument&) {
-      return false;  // make_candidate says why
-    }
-  }
+  const std::optional<std::string> name = declared_effect_name(problem.model, text);
+  if (!name) return false;
   for (const Parameter& q : problem.parameters)
     for (PropertyId t : q.targets)
-      if (problem.model.properties[t].name == name) return true;
+      if (problem.model.properties[t].name == *name) return true;
   return false;
 }
 
@@ -538,6 +544,22 @@ std::vector<EffectCandidate> generate_candidates(const Problem& problem, const C
   return candidates;
 }
 
+namespace {
+
+/// `c` declared, starting from `start` when given: a start outside the candidate's bounds is
+/// refused, not moved onto the nearer bound (a calibration from there would not be the one asked for).
+EffectCandidate with_start(EffectCandidate c, std::optional<double> start, const std::string& text) {
+  if (start && !(*start >= c.lower && *start <= c.upper))
+    throw std::invalid_argument("effect '" + text + "': the start value " + format_round_trip(*start) +
+                                " lies outside the effect's range [" + format_round_trip(c.lower) + ", " +
+                                format_round_trip(c.upper) + "]");
+  c.initial = start;
+  c.declared = true;
+  return c;
+}
+
+}  // namespace
+
 EffectCandidate make_candidate(const Problem& problem, const std::string& text, const CandidateOptions& options) {
   std::optional<double> value;
   const std::string trimmed = text.substr(0, text.rfind('=') == std::string::npos ? text.size() : text.rfind('='));
@@ -548,18 +570,14 @@ EffectCandidate make_candidate(const Problem& problem, const std::string& text, 
     for (EffectCandidate& c : factory.automatic())
       if (c.name == name) {
         parse_effect_text(text, &value);
-        c.initial = value;
-        c.declared = true;
-        return c;
+        return with_start(std::move(c), value, text);
       }
   }
   const ModelChange change = parse_effect_text(text, &value);
   std::string why;
   std::optional<EffectCandidate> c = factory.from_change(change, &why);
   if (!c) throw std::invalid_argument("effect '" + text + "': " + why);
-  c->initial = value;
-  c->declared = true;
-  return *c;
+  return with_start(std::move(*c), value, text);
 }
 
 std::vector<EffectCandidate> enabled_candidates(const Problem& problem, const CandidateOptions& options) {
@@ -607,6 +625,14 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
       throw std::invalid_argument("problem_with_effects: " + c.name + " is given twice");
     out.parameters.push_back(q);
   }
+  // A declared effect that is now a parameter is no candidate any more, and on the changed model
+  // some could not even be described again (a support's fixity, once released).
+  out.effects.erase(std::remove_if(out.effects.begin(), out.effects.end(),
+                                   [&](const DeclaredEffect& e) {
+                                     const std::optional<std::string> name = declared_effect_name(problem.model, e.effect);
+                                     return name && out.find_parameter(*name) >= 0;
+                                   }),
+                    out.effects.end());
   return out;
 }
 

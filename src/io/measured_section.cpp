@@ -204,7 +204,10 @@ void Loader::read_measured(const Field& f) {
   } else if (which.key == "file") {
     read_measured_file(which);
   } else {
-    for (const Field& item : list(which)) problem_.measured.push_back(measured_mode(item, false));
+    for (const Field& item : list(which)) {
+      problem_.measured.push_back(measured_mode(item, false));
+      check_paired_once(item);
+    }
   }
   // The noise stated here replaces what a data file records.
   if (const Field* noise = fs.find("noise")) problem_.measurement_noise = recorded_noise(*noise);
@@ -294,6 +297,7 @@ void Loader::read_measured_file(const Field& f) {
               "has a 'shape' but the data file lists no 'sensors'; a data file with shapes must list the sensor "
               "DOFs they were measured at");
     problem_.measured.push_back(measured_mode(item, true));
+    check_paired_once(item);
   }
   if (problem_.measured.empty()) fail(modes, "'modes' is empty; the data file has no measured modes");
   if (const Field* truth = fs.find("truth")) problem_.synthetic_truth = recorded_truth(*truth);
@@ -461,6 +465,24 @@ PairingRule Loader::pairing(const Field& f, bool has_shape) const {
   }
   rule.family_index = integer_in(required(fs, "index"), 1, INT_MAX);
   return rule;
+}
+
+void Loader::check_paired_once(const Field& item) const {
+  const PairingRule& rule = problem_.measured.back().pairing;
+  if (rule.kind == PairingRule::Kind::Mac) return;
+  for (size_t k = 0; k + 1 < problem_.measured.size(); ++k) {
+    const MeasuredMode& earlier = problem_.measured[k];
+    const PairingRule& other = earlier.pairing;
+    if (other.kind != rule.kind || other.model_index != rule.model_index || other.family != rule.family ||
+        other.family_index != rule.family_index)
+      continue;
+    const std::string model_mode = rule.kind == PairingRule::Kind::ModelIndex
+                                       ? "model mode " + std::to_string(rule.model_index)
+                                       : rule.family + " mode " + std::to_string(rule.family_index);
+    fail_at(item.line, "measured mode " + std::to_string(problem_.measured.size()),
+            "pairs with " + model_mode + ", as measured mode " + std::to_string(k + 1) + " (line " +
+                   std::to_string(earlier.source_line) + ") does; each model mode pairs with one measured mode");
+  }
 }
 
 void Loader::check_computed(const Field& f, int mode) const {

@@ -159,6 +159,8 @@ class Loader {
   MeasuredMode measured_mode(const Field& item, bool in_data_file) const;
   PairingRule pairing(const Field& f, bool has_shape) const;
   void check_computed(const Field& f, int mode) const;
+  /// Fails at `item` when the last measured mode pairs by index with a model mode an earlier one pairs with.
+  void check_paired_once(const Field& item) const;
   SyntheticSpec synthetic(const Field& f) const;
   detail::TestDataSelection test_data(const Field& f) const;
 

@@ -360,6 +360,8 @@ ResolvedPlace resolve(const Model& model, const NodePlace& place, const std::str
         node = v;
       }
     }
+    // Coordinates near the double range make every distance overflow: no node is nearer than another.
+    if (node < 0) fail(text, "the point " + place_text(place) + " lies too far from the model for any node to be nearest");
   }
   const std::string id = std::to_string(model.node_ids[node]);
   r.nodes = {node};
