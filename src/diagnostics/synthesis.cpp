@@ -204,6 +204,10 @@ MeasuredData synthesize_measured_data(const Problem& nominal, const TruthModel& 
   modal.max_rigid_modes = truth.problem.expected_rigid_modes();
   modal.tolerance = truth.problem.options.tolerance;
   ModalSolver solver(system.pattern(), modal);
+  if (modal.num_modes + modal.max_rigid_modes > solver.most_modes())  // the mode numbers asked for, not the numerics
+    throw std::invalid_argument("mode " + std::to_string(modal.num_modes) + " of the truth model: it has " +
+                                std::to_string(system.num_dofs()) + " free DOFs, of which at most " +
+                                std::to_string(solver.most_modes()) + " modes can be found");
   const ModalResult result = solver.solve(K, M);
   if (result.status != EigenStatus::Successful)
     throw std::runtime_error("the truth model's modal solve failed: " + result.message);

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 
 #include "support/text_util.hpp"
@@ -89,6 +90,9 @@ TestData read_test_csv(const std::string& path) {
     long mode = 0, node = 0;
     double frequency = 0, value = 0;
     if (!parse_long(f[0], &mode)) fail("mode '" + excerpt(f[0]) + "' is not a whole number");
+    if (mode < std::numeric_limits<int>::min() || mode > std::numeric_limits<int>::max())  // TestMode::number is an int
+      fail("mode " + std::to_string(mode) + " is outside the range of mode numbers, ±" +
+           std::to_string(std::numeric_limits<int>::max()));
     if (!parse_double(f[1], &frequency) || frequency < 0)
       fail("frequency_hz '" + excerpt(f[1]) + "' is not a finite number ≥ 0");
     if (!parse_long(f[2], &node)) fail("node '" + excerpt(f[2]) + "' is not a whole number");
