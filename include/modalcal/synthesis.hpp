@@ -68,7 +68,8 @@ struct MODALCAL_EXPORT SynthesisOptions {
 /// mode and its noise-free frequency. Shapes are scaled to a largest magnitude of 1 (largest entry
 /// positive) before noise is added.
 /// \throws std::invalid_argument for invalid options, a mode beyond the truth model's DOFs, a
-///   sensor with no truth-model node at its position, or a mode that no sensor sees; std::runtime_error if the truth model's solve fails.
+///   sensor with no truth-model node at its position, or a mode that no sensor sees;
+///   std::runtime_error if the truth model's solve fails.
 MODALCAL_EXPORT MeasuredData synthesize_measured_data(const Problem& nominal, const TruthModel& truth,
                                                       const std::vector<Sensor>& sensors,
                                                       const SynthesisOptions& options);
