@@ -768,6 +768,25 @@ measured:
                      {"measured mode 1", "'shape' has 2 values", "3 DOFs"});
 }
 
+// A bound the optimizer may reach must be a valid value of every target: checked at its line.
+TEST(ProblemErrors, BoundOutsideTheTargetsPhysicalRange) {
+  ExpectProblemError(kCube + R"(
+parameters:
+  E: {targets: [steel.E], initial: 2.0e11, lower: 0, upper: 3.0e11}   # <-
+)",
+                     {"parameter 'E'", "lower bound 0", "'steel.E'", "E must be positive"});
+  ExpectProblemError(kCube + R"(
+parameters:
+  nu: {targets: [steel.nu], initial: 0.3, lower: 0.2, upper: 0.5}   # <-
+)",
+                     {"parameter 'nu'", "upper bound 0.5", "'steel.nu'", "(-1, 0.5)"});
+  ExpectProblemError(kCube + R"(
+parameters:
+  rho: {targets: [steel.density], initial: 7800, lower: -1, upper: 9000}   # <-
+)",
+                     {"parameter 'rho'", "lower bound -1", "density must not be negative"});
+}
+
 TEST(ProblemErrors, DuplicateParameterName) {
   ExpectProblemError(kCube + R"(
 parameters:

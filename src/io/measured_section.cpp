@@ -88,8 +88,19 @@ void Loader::read_parameters(const Field& f) {
       p.truth = number(*t);
       check_within(*t, *p.truth);
     }
+    check_parameter_bounds(p, lower, upper);
     problem_.parameters.push_back(p);
   }
+}
+
+// The optimizer may step to either bound, so a bound outside a target's physical range (a
+// modulus's lower bound of 0) would fail there, after minutes and far from its cause.
+void Loader::check_parameter_bounds(const Parameter& p, const Field& lower, const Field& upper) const {
+  for (const auto& [field, bound] : {std::pair{&lower, p.lower}, std::pair{&upper, p.upper}})
+    for (PropertyId t : p.targets)
+      if (const std::string why = property_range_violation(model_.properties[t].name, bound); !why.empty())
+        fail(*field, field->key + " bound " + format(bound) + " is outside the range of " +
+                         quote(model_.properties[t].name) + ": " + why);
 }
 
 PropertyId Loader::target(const Field& f) {

@@ -148,6 +148,7 @@ class Loader {
   void read_measured(const Field& f);
   void read_effects(const Field& f);
   void check_effect_bounds(const Fields& fs, const DeclaredEffect& effect) const;
+  void check_parameter_bounds(const Parameter& p, const Field& lower, const Field& upper) const;
   void read_measured_file(const Field& f);
   void read_data_sensors(const Field& f);
   SyntheticTruth recorded_truth(const Field& f);

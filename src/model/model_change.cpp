@@ -279,12 +279,7 @@ std::string property_words(EntityKind kind, const std::string& property) {
 
 /// Checks a value against the physical range of its property.
 void check_value(const std::string& text, const std::string& property, double value) {
-  const bool positive = property == "E" || property == "K" || property == "G" || is_scale_factor(property);
-  if (positive && !(value > 0)) fail(text, property + " must be positive, got " + format_round_trip(value));
-  if (property == "nu" && !(value > -1 && value < 0.5))
-    fail(text, "Poisson's ratio must lie in (-1, 0.5), got " + format_round_trip(value));
-  if (!positive && property != "nu" && value < 0)
-    fail(text, property + " must not be negative, got " + format_round_trip(value));
+  if (const std::string why = property_range_violation(property, value); !why.empty()) fail(text, why);
 }
 
 /// Frees `component` of `nodes` wherever the model fixes it; every node must be fixed there.
@@ -605,6 +600,16 @@ std::string format_round_trip(double value) {
   char buffer[64];
   const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
   return std::string(buffer, result.ptr);
+}
+
+std::string property_range_violation(const std::string& property, double value) {
+  const std::string key = property.substr(property.rfind('.') + 1);
+  const bool positive = key == "E" || key == "K" || key == "G" || is_scale_factor(key);
+  if (positive && !(value > 0)) return key + " must be positive, got " + format_round_trip(value);
+  if (key == "nu" && !(value > -1 && value < 0.5))
+    return "Poisson's ratio must lie in (-1, 0.5), got " + format_round_trip(value);
+  if (!positive && key != "nu" && !(value >= 0)) return key + " must not be negative, got " + format_round_trip(value);
+  return "";
 }
 
 ModelChange parse_model_change(const std::string& raw) {
