@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <vector>
 
 #include "support/text_util.hpp"
 #include "modalcal/problem.hpp"
@@ -44,6 +45,28 @@ std::string unreadable_input(const std::string& path, const std::string& what) {
 
 namespace modalcal::detail {
 
+namespace {
+
+// yaml-cpp ends lines at LF only; a file saved with classic-Mac CR line ends would read as one
+// line. A lone CR becomes LF (CRLF stays), so line numbers in messages match an editor's.
+std::string with_line_feeds(std::string text) {
+  for (size_t i = 0; i < text.size(); ++i)
+    if (text[i] == '\r' && (i + 1 == text.size() || text[i + 1] != '\n')) text[i] = '\n';
+  return text;
+}
+
+// Content after a `---` would otherwise be dropped without a word; empty documents drop nothing.
+YAML::Node only_document(const std::string& path, const std::string& what, const std::vector<YAML::Node>& documents) {
+  for (size_t k = 1; k < documents.size(); ++k)
+    if (!documents[k].IsNull())
+      throw ProblemError(path, documents[k].Mark().is_null() ? 0 : documents[k].Mark().line + 1,
+                         "a second YAML document (after '---') starts here; a " + what +
+                             " is one document: join them or remove the '---'");
+  return documents.empty() ? YAML::Node() : documents.front();
+}
+
+}  // namespace
+
 YAML::Node load_yaml_file(const std::string& path, const std::string& what) {
   if (const std::string reason = unreadable_reason(path, what, kMostYamlBytes); !reason.empty())
     throw ProblemError(path, 0, reason);
@@ -52,7 +75,7 @@ YAML::Node load_yaml_file(const std::string& path, const std::string& what) {
   if (!in.is_open() || in.bad())
     throw ProblemError(path, 0, "cannot read the " + what + " '" + path + "'; check its permissions");
   try {
-    return YAML::Load(text);
+    return only_document(path, what, YAML::LoadAll(with_line_feeds(text)));
   } catch (const YAML::DeepRecursion& e) {
     // yaml-cpp reports it as "bad file".
     throw ProblemError(path, e.mark.is_null() ? 0 : e.mark.line + 1,

@@ -106,15 +106,15 @@ std::string kind_name(EntityKind kind) {
 
 std::vector<Field> Loader::entries(const Field& f, const std::string& what) const {
   std::vector<Field> out;
+  const std::string where = f.key.empty() ? "the file's top level" : f.name();  // the root has no key
   for (const auto& kv : f.node) {
     const int line = kv.first.Mark().line + 1;
     if (!kv.first.IsScalar())
-      fail_at(line, what,
-              "keys must be plain names, got " + describe(kv.first) + " in " + f.name());
+      fail_at(line, what, "keys must be plain names, got " + describe(kv.first) + " in " + where);
     for (const Field& other : out)
       if (other.key == kv.first.Scalar())
         fail_at(line, what,
-                quote(other.key) + " is given twice in " + f.name() + " (first at line " +
+                quote(other.key) + " is given twice in " + where + " (first at line " +
                     std::to_string(other.line) + "); keys and names must be unique");
     out.push_back({what, kv.first.Scalar(), kv.second, line, 0});
   }
@@ -203,11 +203,13 @@ long Loader::integer(const Field& f) const {
 
 int Loader::integer_in(const Field& f, int lo, int hi) const {
   const long v = integer(f);
-  if (v < lo || v > hi)
-    fail(f, f.name() + " must be " +
-                (hi == INT_MAX ? "at least " + std::to_string(lo)
-                               : "between " + std::to_string(lo) + " and " + std::to_string(hi)) +
-                ", got " + std::to_string(v));
+  if (v < lo || v > hi) {
+    // An open range names only the bound that was crossed: "at least 1" beside 2^31 would puzzle.
+    const std::string range = hi != INT_MAX ? "between " + std::to_string(lo) + " and " + std::to_string(hi)
+                              : v < lo      ? "at least " + std::to_string(lo)
+                                            : "at most " + std::to_string(hi);
+    fail(f, f.name() + " must be " + range + ", got " + std::to_string(v));
+  }
   return static_cast<int>(v);
 }
 
