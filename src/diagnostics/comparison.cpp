@@ -1,6 +1,7 @@
 // Test-analysis correlation: pairing, MAC matrix, COMAC and SEREP cross-orthogonality
 // (formulas in comparison.hpp).
 #include "modalcal/comparison.hpp"
+#include "support/text_util.hpp"
 
 #include <Eigen/SVD>
 
@@ -18,11 +19,11 @@ namespace modalcal {
 
 bool ComparisonOptions::IsValid(std::string* error) const {
   if (!(unpaired_mac >= 0 && unpaired_mac <= 1)) {
-    if (error) *error = "unpaired_mac = " + std::to_string(unpaired_mac) + ": must be in [0, 1]";
+    if (error) *error = "unpaired_mac = " + detail::option_text(unpaired_mac) + ": must be in [0, 1]";
     return false;
   }
   if (!(serep_condition > 0 && serep_condition < 1)) {
-    if (error) *error = "serep_condition = " + std::to_string(serep_condition) + ": must be in (0, 1)";
+    if (error) *error = "serep_condition = " + detail::option_text(serep_condition) + ": must be in (0, 1)";
     return false;
   }
   return true;

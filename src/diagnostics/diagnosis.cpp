@@ -1,5 +1,6 @@
 // The model-form diagnosis loop and its before/after report (diagnosis.hpp).
 #include "modalcal/diagnosis.hpp"
+#include "support/text_util.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -115,11 +116,11 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
   if (!candidates.IsValid(&inner)) return bad("candidates");
   if (!ranking.IsValid(&inner)) return bad("ranking");
   if (max_steps < 0) {
-    if (error) *error = "max_steps = " + std::to_string(max_steps) + ": must be >= 0";
+    if (error) *error = "max_steps = " + detail::option_text(max_steps) + ": must be >= 0";
     return false;
   }
   if (first_step_alternatives < 0) {
-    if (error) *error = "first_step_alternatives = " + std::to_string(first_step_alternatives) + ": must be >= 0";
+    if (error) *error = "first_step_alternatives = " + detail::option_text(first_step_alternatives) + ": must be >= 0";
     return false;
   }
   return true;

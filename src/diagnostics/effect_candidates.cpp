@@ -13,6 +13,7 @@
 #include "modalcal/block_geometry.hpp"
 #include "modalcal/effects.hpp"
 #include "model_surface.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal {
 
@@ -512,13 +513,13 @@ bool CandidateOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (!(gap_factor > 0)) return bad("gap_factor = " + std::to_string(gap_factor) + ": must be > 0");
+  if (!(gap_factor > 0)) return bad("gap_factor = " + detail::option_text(gap_factor) + ": must be > 0");
   if (!(region_elements >= 1 && region_elements <= 1000))
-    return bad("region_elements = " + std::to_string(region_elements) + ": must be in [1, 1000]");
+    return bad("region_elements = " + detail::option_text(region_elements) + ": must be in [1, 1000]");
   if (!(region_levels >= 1 && region_levels <= 6))
-    return bad("region_levels = " + std::to_string(region_levels) + ": must be in [1, 6]");
+    return bad("region_levels = " + detail::option_text(region_levels) + ": must be in [1, 6]");
   if (!(rigid_support_factor >= 10 && rigid_support_factor <= 1e8))
-    return bad("rigid_support_factor = " + std::to_string(rigid_support_factor) + ": must be in [10, 1e8]");
+    return bad("rigid_support_factor = " + detail::option_text(rigid_support_factor) + ": must be in [10, 1e8]");
   return true;
 }
 

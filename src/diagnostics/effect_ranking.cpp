@@ -12,6 +12,7 @@
 
 #include "modalcal/effects.hpp"
 #include "modalcal/task_map.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal {
 
@@ -458,13 +459,13 @@ bool RankingOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (refits < 0) return bad("refits = " + std::to_string(refits) + ": must be >= 0");
-  if (place_refits < 0) return bad("place_refits = " + std::to_string(place_refits) + ": must be >= 0");
-  if (neighbour_refits < 0) return bad("neighbour_refits = " + std::to_string(neighbour_refits) + ": must be >= 0");
+  if (refits < 0) return bad("refits = " + detail::option_text(refits) + ": must be >= 0");
+  if (place_refits < 0) return bad("place_refits = " + detail::option_text(place_refits) + ": must be >= 0");
+  if (neighbour_refits < 0) return bad("neighbour_refits = " + detail::option_text(neighbour_refits) + ": must be >= 0");
   if (!(place_refit_share > 0 && place_refit_share <= 1))
-    return bad("place_refit_share = " + std::to_string(place_refit_share) + ": must be in (0, 1]");
+    return bad("place_refit_share = " + detail::option_text(place_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
-    return bad("significance = " + std::to_string(significance) + ": must be in (0, 0.5)");
+    return bad("significance = " + detail::option_text(significance) + ": must be in (0, 0.5)");
   std::string inner;
   if (!refit.IsValid(&inner)) return bad("refit." + inner);
   if (!objective.IsValid(&inner)) return bad("objective." + inner);

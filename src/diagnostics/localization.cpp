@@ -1,4 +1,5 @@
 #include "modalcal/localization.hpp"
+#include "support/text_util.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -19,16 +20,16 @@ bool LocalizationOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (basis_modes < 0) return bad("basis_modes = " + std::to_string(basis_modes) + ": must be >= 0");
+  if (basis_modes < 0) return bad("basis_modes = " + detail::option_text(basis_modes) + ": must be >= 0");
   if (max_automatic_basis < 1)
-    return bad("max_automatic_basis = " + std::to_string(max_automatic_basis) + ": must be >= 1");
+    return bad("max_automatic_basis = " + detail::option_text(max_automatic_basis) + ": must be >= 1");
   if (!(regularization >= 0 && regularization < 1))
-    return bad("regularization = " + std::to_string(regularization) + ": must be in [0, 1)");
+    return bad("regularization = " + detail::option_text(regularization) + ": must be in [0, 1)");
   if (!(max_frequency_ratio >= 1))
-    return bad("max_frequency_ratio = " + std::to_string(max_frequency_ratio) + ": must be >= 1");
-  if (!(max_condition > 1)) return bad("max_condition = " + std::to_string(max_condition) + ": must be > 1");
+    return bad("max_frequency_ratio = " + detail::option_text(max_frequency_ratio) + ": must be >= 1");
+  if (!(max_condition > 1)) return bad("max_condition = " + detail::option_text(max_condition) + ": must be > 1");
   if (!(rank_tolerance > 0 && rank_tolerance <= 1e-2))
-    return bad("rank_tolerance = " + std::to_string(rank_tolerance) + ": must be in (0, 1e-2]");
+    return bad("rank_tolerance = " + detail::option_text(rank_tolerance) + ": must be in (0, 1e-2]");
   return true;
 }
 

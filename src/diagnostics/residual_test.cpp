@@ -1,6 +1,7 @@
 // The chi-square test of the calibrated residual against the stated noise (residual_test.hpp).
 
 #include "modalcal/residual_test.hpp"
+#include "support/text_util.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -68,7 +69,7 @@ double frequency_variance(const MeasurementNoise& noise, const MeasuredMode& mod
 
 bool ResidualTestOptions::IsValid(std::string* error) const {
   if (!(significance > 0 && significance < 0.5)) {
-    if (error) *error = "ResidualTestOptions::significance = " + std::to_string(significance) + " must lie in (0, 0.5)";
+    if (error) *error = "ResidualTestOptions::significance = " + detail::option_text(significance) + " must lie in (0, 0.5)";
     return false;
   }
   return true;

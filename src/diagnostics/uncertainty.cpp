@@ -1,6 +1,7 @@
 // The uncertainty of a calibrated point: Laplace (sandwich) intervals and profile intervals
 // (formulas in uncertainty.hpp).
 #include "modalcal/uncertainty.hpp"
+#include "support/text_util.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -245,7 +246,7 @@ bool UncertaintyOptions::IsValid(std::string* error) const {
   if (!(confidence > 0 && confidence < 1)) return bad("confidence = " + format_value(confidence) + ": must be in (0, 1)");
   if (!(profile_half_width > 0)) return bad("profile_half_width = " + format_value(profile_half_width) + ": must be > 0");
   if (profile_steps < 1 || profile_steps > 1000)
-    return bad("profile_steps = " + std::to_string(profile_steps) + ": must be in [1, 1000]");
+    return bad("profile_steps = " + detail::option_text(profile_steps) + ": must be in [1, 1000]");
   std::string inner;
   if (!recalibration.IsValid(&inner)) return bad("recalibration." + inner);
   return true;

@@ -13,6 +13,7 @@
 #include "eigen/block_lanczos.hpp"
 #include "eigen/cholmod_factor.hpp"
 #include "modalcal/eigen.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal {
 
@@ -296,20 +297,20 @@ bool ModalOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (num_modes < 1) return bad("num_modes = " + std::to_string(num_modes) + ": must be >= 1");
+  if (num_modes < 1) return bad("num_modes = " + detail::option_text(num_modes) + ": must be >= 1");
   if (max_rigid_modes < 0 || max_rigid_modes > 6)
-    return bad("max_rigid_modes = " + std::to_string(max_rigid_modes) + ": must be in 0..6");
+    return bad("max_rigid_modes = " + detail::option_text(max_rigid_modes) + ": must be in 0..6");
   if (!(tolerance > 0 && tolerance <= 1e-2))
-    return bad("tolerance = " + std::to_string(tolerance) + ": must be in (0, 1e-2]");
-  if (max_iterations < 1) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 1");
+    return bad("tolerance = " + detail::option_text(tolerance) + ": must be in (0, 1e-2]");
+  if (max_iterations < 1) return bad("max_iterations = " + detail::option_text(max_iterations) + ": must be >= 1");
   if (subspace_size != 0 && subspace_size <= num_modes + max_rigid_modes)
-    return bad("subspace_size = " + std::to_string(subspace_size) + ": must be 0 or > num_modes + max_rigid_modes");
+    return bad("subspace_size = " + detail::option_text(subspace_size) + ": must be 0 or > num_modes + max_rigid_modes");
   if (!(initial_shift <= 0) || !std::isfinite(initial_shift))
-    return bad("initial_shift = " + std::to_string(initial_shift) + ": must be 0 (automatic) or negative");
+    return bad("initial_shift = " + detail::option_text(initial_shift) + ": must be 0 (automatic) or negative");
   if (!(rigid_tolerance > 0 && rigid_tolerance <= 1e-3))
-    return bad("rigid_tolerance = " + std::to_string(rigid_tolerance) + ": must be in (0, 1e-3]");
+    return bad("rigid_tolerance = " + detail::option_text(rigid_tolerance) + ": must be in (0, 1e-3]");
   if (block_size < 0 || block_size > 64)
-    return bad("block_size = " + std::to_string(block_size) + ": must be in 0..64");
+    return bad("block_size = " + detail::option_text(block_size) + ": must be in 0..64");
   return true;
 }
 

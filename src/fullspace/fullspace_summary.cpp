@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "modalcal/fullspace.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal {
 
@@ -35,29 +36,29 @@ bool FullSpaceOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (max_iterations < 0) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 0");
-  if (!(tolerance > 0 && tolerance < 1)) return bad("tolerance = " + std::to_string(tolerance) + ": must be in (0, 1)");
-  if (!(mu_init > 0)) return bad("mu_init = " + std::to_string(mu_init) + ": must be > 0");
+  if (max_iterations < 0) return bad("max_iterations = " + detail::option_text(max_iterations) + ": must be >= 0");
+  if (!(tolerance > 0 && tolerance < 1)) return bad("tolerance = " + detail::option_text(tolerance) + ": must be in (0, 1)");
+  if (!(mu_init > 0)) return bad("mu_init = " + detail::option_text(mu_init) + ": must be > 0");
   if (globalization_iterations < 0)
-    return bad("globalization_iterations = " + std::to_string(globalization_iterations) + ": must be >= 0");
+    return bad("globalization_iterations = " + detail::option_text(globalization_iterations) + ": must be >= 0");
   if (!(globalization_reduction > 0 && globalization_reduction <= 1))
-    return bad("globalization_reduction = " + std::to_string(globalization_reduction) + ": must be in (0, 1]");
-  if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + std::to_string(guard_mac) + ": must be in (0, 1)");
+    return bad("globalization_reduction = " + detail::option_text(globalization_reduction) + ": must be in (0, 1]");
+  if (!(guard_mac > 0 && guard_mac < 1)) return bad("guard_mac = " + detail::option_text(guard_mac) + ": must be in (0, 1)");
   if (shared_factorization_min_dofs < 0)
-    return bad("shared_factorization_min_dofs = " + std::to_string(shared_factorization_min_dofs) + ": must be >= 0");
+    return bad("shared_factorization_min_dofs = " + detail::option_text(shared_factorization_min_dofs) + ": must be >= 0");
   if (!(guard_step >= 0 && guard_step <= 0.1))
-    return bad("guard_step = " + std::to_string(guard_step) + ": must be in [0, 0.1]");
-  if (max_restarts < 0) return bad("max_restarts = " + std::to_string(max_restarts) + ": must be >= 0");
+    return bad("guard_step = " + detail::option_text(guard_step) + ": must be in [0, 0.1]");
+  if (max_restarts < 0) return bad("max_restarts = " + detail::option_text(max_restarts) + ": must be >= 0");
   if (max_crossing_escapes < 0)
-    return bad("max_crossing_escapes = " + std::to_string(max_crossing_escapes) + ": must be >= 0");
-  if (!(verify_mac > 0 && verify_mac < 1)) return bad("verify_mac = " + std::to_string(verify_mac) + ": must be in (0, 1)");
+    return bad("max_crossing_escapes = " + detail::option_text(max_crossing_escapes) + ": must be >= 0");
+  if (!(verify_mac > 0 && verify_mac < 1)) return bad("verify_mac = " + detail::option_text(verify_mac) + ": must be in (0, 1)");
   if (!(verify_eigenvalue_tolerance > 0 && verify_eigenvalue_tolerance < 1))
-    return bad("verify_eigenvalue_tolerance = " + std::to_string(verify_eigenvalue_tolerance) + ": must be in (0, 1)");
+    return bad("verify_eigenvalue_tolerance = " + detail::option_text(verify_eigenvalue_tolerance) + ": must be in (0, 1)");
   if (hessian == Hessian::LimitedMemory && newton_solver != NewtonSolver::Ipopt)
     return bad("hessian = LimitedMemory with newton_solver = BlockElimination: the L-BFGS Hessian is Ipopt's; the "
                "block solver needs the exact one");
   if (print_level < 0 || print_level > 12)
-    return bad("print_level = " + std::to_string(print_level) + ": must be in [0, 12]");
+    return bad("print_level = " + detail::option_text(print_level) + ": must be in [0, 12]");
   return true;
 }
 

@@ -1,5 +1,7 @@
 #include "modalcal/model.hpp"
 
+#include "support/text_util.hpp"
+
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -136,7 +138,7 @@ void ModelCheck::elastic_constants(const ElementBlock& b, const std::string& whe
   }
   if (b.form == ElasticForm::YoungPoisson) {
     const double nu = m_.property_value(b.modulus_b);
-    if (!(nu > -1.0 && nu < 0.5)) fail(where + ": Poisson's ratio " + std::to_string(nu) + " is outside (-1, 0.5)");
+    if (!(nu > -1.0 && nu < 0.5)) fail(where + ": Poisson's ratio " + detail::option_text(nu) + " is outside (-1, 0.5)");
   }
 }
 

@@ -1,4 +1,5 @@
 #include "modalcal/objective.hpp"
+#include "support/text_util.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -26,16 +27,16 @@ bool ObjectiveOptions::IsValid(std::string* error) const {
     return false;
   };
   if (!(regularization >= 0) || !std::isfinite(regularization))
-    return bad("regularization = " + std::to_string(regularization) + ": must be finite and >= 0");
-  if (extra_modes < 1) return bad("extra_modes = " + std::to_string(extra_modes) + ": must be >= 1");
+    return bad("regularization = " + detail::option_text(regularization) + ": must be finite and >= 0");
+  if (extra_modes < 1) return bad("extra_modes = " + detail::option_text(extra_modes) + ": must be >= 1");
   if (!(linear_tolerance > 0 && linear_tolerance <= 1e-4))
-    return bad("linear_tolerance = " + std::to_string(linear_tolerance) + ": must be in (0, 1e-4]");
+    return bad("linear_tolerance = " + detail::option_text(linear_tolerance) + ": must be in (0, 1e-4]");
   if (max_linear_iterations < 1)
-    return bad("max_linear_iterations = " + std::to_string(max_linear_iterations) + ": must be >= 1");
+    return bad("max_linear_iterations = " + detail::option_text(max_linear_iterations) + ": must be >= 1");
   if (!(difference_step > 0 && difference_step < 0.1))
-    return bad("difference_step = " + std::to_string(difference_step) + ": must be in (0, 0.1)");
+    return bad("difference_step = " + detail::option_text(difference_step) + ": must be in (0, 0.1)");
   if (!(close_eigenvalue_tolerance > 0 && close_eigenvalue_tolerance < 1))
-    return bad("close_eigenvalue_tolerance = " + std::to_string(close_eigenvalue_tolerance) + ": must be in (0, 1)");
+    return bad("close_eigenvalue_tolerance = " + detail::option_text(close_eigenvalue_tolerance) + ": must be in (0, 1)");
   return true;
 }
 

@@ -9,6 +9,7 @@
 
 #include "modalcal/reduced.hpp"
 #include "reduced/scaled_problem.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal {
 
@@ -27,17 +28,17 @@ bool ReducedOptions::IsValid(std::string* error) const {
     if (error) *error = message;
     return false;
   };
-  if (max_iterations < 0) return bad("max_iterations = " + std::to_string(max_iterations) + ": must be >= 0");
-  if (!(gradient_tolerance >= 0)) return bad("gradient_tolerance = " + std::to_string(gradient_tolerance) + ": must be >= 0");
+  if (max_iterations < 0) return bad("max_iterations = " + detail::option_text(max_iterations) + ": must be >= 0");
+  if (!(gradient_tolerance >= 0)) return bad("gradient_tolerance = " + detail::option_text(gradient_tolerance) + ": must be >= 0");
   if (!(relative_gradient_tolerance >= 0 && relative_gradient_tolerance < 1))
-    return bad("relative_gradient_tolerance = " + std::to_string(relative_gradient_tolerance) + ": must be in [0, 1)");
+    return bad("relative_gradient_tolerance = " + detail::option_text(relative_gradient_tolerance) + ": must be in [0, 1)");
   if (!(function_tolerance >= 0 && function_tolerance < 1))
-    return bad("function_tolerance = " + std::to_string(function_tolerance) + ": must be in [0, 1)");
-  if (memory < 1) return bad("memory = " + std::to_string(memory) + ": must be >= 1");
-  if (!(armijo > 0 && armijo < 0.5)) return bad("armijo = " + std::to_string(armijo) + ": must be in (0, 0.5)");
+    return bad("function_tolerance = " + detail::option_text(function_tolerance) + ": must be in [0, 1)");
+  if (memory < 1) return bad("memory = " + detail::option_text(memory) + ": must be >= 1");
+  if (!(armijo > 0 && armijo < 0.5)) return bad("armijo = " + detail::option_text(armijo) + ": must be in (0, 0.5)");
   if (max_line_search_steps < 1)
-    return bad("max_line_search_steps = " + std::to_string(max_line_search_steps) + ": must be >= 1");
-  if (!(max_step > 0)) return bad("max_step = " + std::to_string(max_step) + ": must be > 0");
+    return bad("max_line_search_steps = " + detail::option_text(max_line_search_steps) + ": must be >= 1");
+  if (!(max_step > 0)) return bad("max_step = " + detail::option_text(max_step) + ": must be > 0");
   return true;
 }
 

@@ -1,7 +1,9 @@
 #pragma once
 // Internal: small text helpers for messages and the test-data readers and writers.
+#include <charconv>
 #include <sstream>
 #include <string>
+#include <type_traits>
 
 namespace modalcal::detail {
 
@@ -26,6 +28,19 @@ inline std::string number_text(double v, int precision = 6) {
   s.precision(precision);
   s << v;
   return s.str();
+}
+
+/// An option's value for a message: a whole number as it is, a floating-point one in the fewest
+/// digits that read back to it (1e+308, not std::to_string's 309 digits; 1e-09, not 0.000000).
+template <typename T>
+std::string option_text(T value) {
+  if constexpr (std::is_integral_v<T>) {
+    return std::to_string(value);
+  } else {
+    char buffer[32];
+    const auto result = std::to_chars(buffer, buffer + sizeof buffer, static_cast<double>(value));
+    return std::string(buffer, result.ptr);
+  }
 }
 
 }  // namespace modalcal::detail
