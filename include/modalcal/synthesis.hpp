@@ -45,7 +45,8 @@ struct MODALCAL_EXPORT TruthModel {
 /// The record lists as hidden effects every property that differs from the nominal model and is
 /// not a nominal parameter's target, and the nominal parameters' truth-model values.
 /// \throws std::invalid_argument naming the change and cause if a change fails to apply or sets
-///   a calibration parameter's target (that is not hidden: give the parameter a `truth` instead).
+///   a calibration parameter's target (that is not hidden: give the parameter a `truth` instead),
+///   or sets a property an earlier change set.
 MODALCAL_EXPORT TruthModel make_truth(const Problem& nominal, const Problem* truth_file,
                                       const std::vector<ModelChange>& changes);
 

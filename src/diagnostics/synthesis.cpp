@@ -1,5 +1,6 @@
 // Synthetic measured modes from a truth model with hidden effects (see synthesis.hpp).
 #include "modalcal/synthesis.hpp"
+#include "support/text_util.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -119,6 +120,11 @@ TruthModel make_truth(const Problem& nominal, const Problem* truth_file, const s
       throw std::invalid_argument("change '" + text + "': " + effect.name +
                                   " is a calibration parameter's target, so it is not hidden; give that parameter a "
                                   "'truth' value in the problem file instead");
+    // Two changes of one property would leave the last one's value with no word of the first.
+    for (size_t k = 0; k < applied.size(); ++k)
+      if (applied[k].name == effect.name)
+        throw std::invalid_argument("change '" + text + "': " + effect.name + " is already set by change '" +
+                                    truth.record.changes[k] + "'; give each property once");
     applied.push_back(apply_model_change(&model, change));
     truth.record.changes.push_back(text);
   }
@@ -159,9 +165,9 @@ bool SynthesisOptions::IsValid(std::string* error) const {
   };
   if (modes.empty()) return bad("modes is empty: list the truth model's modes to measure");
   for (size_t i = 0; i < modes.size(); ++i) {
-    if (modes[i] < 1) return bad("modes[" + std::to_string(i) + "] = " + std::to_string(modes[i]) + ": must be >= 1");
+    if (modes[i] < 1) return bad("modes[" + detail::option_text(i) + "] = " + detail::option_text(modes[i]) + ": must be >= 1");
     if (std::find(modes.begin(), modes.begin() + static_cast<long>(i), modes[i]) != modes.begin() + static_cast<long>(i))
-      return bad("modes[" + std::to_string(i) + "] = " + std::to_string(modes[i]) + ": listed twice");
+      return bad("modes[" + detail::option_text(i) + "] = " + detail::option_text(modes[i]) + ": listed twice");
   }
   std::string why;
   if (!noise.IsValid(&why)) return bad("noise." + why);
