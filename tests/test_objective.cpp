@@ -23,6 +23,22 @@ using testing::kEveryParameterKindModel;
 
 Problem LoadModel() { return LoadProblem(WriteTempFile("model.yaml", kEveryParameterKindModel)); }
 
+// A measured shape in odd units (or scaled far down) must pair as well as one of unit size.
+TEST(Objective, MacDoesNotDependOnTheShapesScales) {
+  Vector a(4), b(4);
+  a << 1.0, -0.5, 0.25, 2.0;
+  b << 0.9, -0.4, 0.3, 2.2;
+  const double reference = mac(a, b);
+  EXPECT_GT(reference, 0.9);
+  for (double scale : {1e-300, 1e-200, 1e-160, 1e+160, 1e+300}) {
+    SCOPED_TRACE(scale);
+    EXPECT_NEAR(mac(scale * a, b), reference, 1e-14);
+    EXPECT_NEAR(mac(a, scale * b), reference, 1e-14);
+  }
+  EXPECT_EQ(mac(Vector::Zero(4), b), 0.0);
+  EXPECT_EQ(mac(Vector(), Vector()), 0.0);
+}
+
 TEST(Objective, VanishesAtTheTruthAndIsPositiveElsewhere) {
   const Problem problem = LoadModel();
   Objective objective(problem);

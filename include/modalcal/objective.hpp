@@ -214,7 +214,8 @@ class MODALCAL_EXPORT Objective {
   int forward_solves_ = 0, linear_solves_ = 0;
 };
 
-/// Modal assurance criterion \f$ (a^T b)^2 / ((a^T a)(b^T b)) \f$ (0 if either is zero).
+/// Modal assurance criterion \f$ (a^T b)^2 / ((a^T a)(b^T b)) \f$ (0 if either is zero), in
+/// [0, 1] and independent of the vectors' scales, from 1e-300 to 1e+300 alike.
 MODALCAL_EXPORT double mac(const Vector& a, const Vector& b);
 
 }  // namespace modalcal

@@ -15,10 +15,13 @@
 namespace modalcal {
 
 double mac(const Vector& a, const Vector& b) {
-  const double aa = a.squaredNorm(), bb = b.squaredNorm();
-  if (aa == 0 || bb == 0) return 0;
-  const double ab = a.dot(b);
-  return ab * ab / (aa * bb);
+  // MAC does not depend on scale, but the squares of entries near 1e-160 underflow and those near
+  // 1e+160 overflow: each vector is taken at a largest entry of 1 first.
+  const double scale_a = a.size() ? a.cwiseAbs().maxCoeff() : 0, scale_b = b.size() ? b.cwiseAbs().maxCoeff() : 0;
+  if (scale_a == 0 || scale_b == 0) return 0;
+  const Vector unit_a = a / scale_a, unit_b = b / scale_b;
+  const double ab = unit_a.dot(unit_b);
+  return ab * ab / (unit_a.squaredNorm() * unit_b.squaredNorm());
 }
 
 bool ObjectiveOptions::IsValid(std::string* error) const {
