@@ -966,6 +966,18 @@ TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
   EXPECT_EQ(k.effects.size(), 2u);
 }
 
+TEST(Diagnosis, AnEffectToStartFromGivenTwiceIsRefusedBeforeTheCalibration) {
+  const Problem hidden = WithHiddenEffect({"j.krx=10"}, 15);
+  DiagnosisOptions options;
+  options.added = {make_candidate(hidden, "top.mass_scale"), make_candidate(hidden, "top.mass_scale")};
+  try {
+    diagnose(hidden, hidden.initial_values(), options);
+    ADD_FAILURE() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("top.mass_scale is given twice"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Diagnosis, OneVerdictWhenOnlyTheTargetedTestRejects) {
   // A weak rotational stiffness: spread over 102 degrees of freedom the residual passes the omnibus
   // test, but one candidate explains far more of it than the best of 32 noise-only columns would.

@@ -286,7 +286,8 @@ struct MODALCAL_EXPORT Diagnosis {
 };
 
 /// Runs the loop on `problem` from the parameter values `start`.
-/// \throws std::invalid_argument for invalid options or a start of the wrong size;
+/// \throws std::invalid_argument for invalid options, a start of the wrong size or an effect to
+///   start from given twice (among the problem's enabled effects and DiagnosisOptions::added);
 ///   std::runtime_error if the start cannot be evaluated.
 MODALCAL_EXPORT Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options = {});
 

@@ -813,6 +813,18 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   d->discretization->score_as_measured = score_as_measured;
 }
 
+/// An effect to start from given twice is the caller's mistake: said before the first calibration,
+/// where the loop's start would only find that the effects make no model.
+void check_starting_effects(const Problem& problem, const DiagnosisOptions& options) {
+  std::vector<EffectCandidate> effects = enabled_candidates(problem, options.candidates);
+  effects.insert(effects.end(), options.added.begin(), options.added.end());
+  for (size_t k = 0; k < effects.size(); ++k)
+    for (size_t j = 0; j < k; ++j)
+      if (effects[j].name == effects[k].name)
+        throw std::invalid_argument("diagnose: the effect " + effects[k].name +
+                                    " is given twice among the problem's enabled effects and DiagnosisOptions::added");
+}
+
 }  // namespace
 
 Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
@@ -821,6 +833,7 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   if (start.size() != static_cast<int>(problem.parameters.size()))
     throw std::invalid_argument("diagnose: " + std::to_string(start.size()) + " start values for " +
                                 std::to_string(problem.parameters.size()) + " parameters");
+  check_starting_effects(problem, options);
   Diagnosis d;
   d.noise_known = has_noise(problem);
   calibrate_nominal(weighted_if(d.noise_known, problem), start, options, &d.calibration, &d.before);
