@@ -2,6 +2,7 @@
 // element blocks, physical surface, curve and point groups node sets.
 #include <algorithm>
 #include <charconv>
+#include <climits>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -178,6 +179,10 @@ void check_msh2_ascii(const std::string& path) {
             !whole_numbers(id_text, &numbers) || !is_number(coordinate[0]) || !is_number(coordinate[1]) ||
             !is_number(coordinate[2]))
           fail("a node line is a node number and three coordinates, found '" + excerpt(trim(line), 60) + "'");
+        // Gmsh's MSH 2 reader keeps node numbers in an int: a larger one wraps onto another node.
+        if (numbers[0] > INT_MAX)
+          fail("node number " + std::to_string(numbers[0]) + " is above 2147483647, the largest Gmsh's MSH 2 reader "
+               "keeps (a larger one would wrap onto another node); renumber the nodes");
         if (const auto [it, is_new] = defined.emplace(numbers[0], line_number); !is_new)
           fail("a node id is defined twice (node " + std::to_string(numbers[0]) + ", at lines " +
                std::to_string(it->second) + " and " + std::to_string(line_number) + ")");
