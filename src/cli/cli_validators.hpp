@@ -3,9 +3,12 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli/cli_common.hpp"
 #include "modalcal/output.hpp"
@@ -48,17 +51,47 @@ inline CLI::Validator SeedText() {
 /// the file system's limit (check_output_path()). Checked when the options are parsed, so that
 /// every command refuses it before it computes anything; whether it names an input is checked
 /// once the inputs are known.
+/// The name OutputFile() gives its validator, by which check_distinct_outputs() finds the outputs.
+inline const char* const kOutputFileValidator = "output-file";
+
 inline CLI::Validator OutputFile() {
   return CLI::Validator(
-      [](std::string& text) -> std::string {
-        try {
-          check_output_path(text, {});
-        } catch (const std::invalid_argument& e) {
-          return e.what();
-        }
-        return "";
-      },
-      "FILE");
+             [](std::string& text) -> std::string {
+               try {
+                 check_output_path(text, {});
+               } catch (const std::invalid_argument& e) {
+                 return e.what();
+               }
+               return "";
+             },
+             "FILE")
+      .name(kOutputFileValidator);
+}
+
+/// Two of `command`'s output files (options checked by OutputFile()) naming one file would leave
+/// only the one written last, and exit 0: refused before the run. Devices (/dev/stdout) take both.
+/// \throws std::invalid_argument naming both options.
+inline void check_distinct_outputs(CLI::App& command) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<fs::path, std::string>> seen;  // the file, the option that names it
+  for (CLI::Option* option : command.get_options()) {
+    if (option->count() == 0) continue;
+    try {
+      option->get_validator(kOutputFileValidator);
+    } catch (const CLI::OptionNotFound&) {
+      continue;
+    }
+    for (const std::string& path : option->results()) {
+      std::error_code error;
+      if (fs::exists(path, error) && !fs::is_regular_file(path, error)) continue;
+      const fs::path file = fs::weakly_canonical(path, error);
+      for (const auto& [other, name] : seen)
+        if (other == file)
+          throw std::invalid_argument(name + " and " + option->get_name() + " both name '" + path +
+                                      "': one would overwrite the other; give each output its own file");
+      seen.emplace_back(file, option->get_name());
+    }
+  }
 }
 
 }  // namespace modalcal::cli

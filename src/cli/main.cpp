@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cli/cli_common.hpp"
+#include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 
 int main(int argc, char** argv) {
@@ -26,6 +27,8 @@ int main(int argc, char** argv) {
   modalcal::cli::register_compare_command(app, &exit_code);
   modalcal::cli::register_localize_command(app, &exit_code);
   modalcal::cli::register_diagnose_command(app, &exit_code);
+  for (CLI::App* command : app.get_subcommands([](CLI::App*) { return true; }))
+    command->parse_complete_callback([command] { modalcal::cli::check_distinct_outputs(*command); });
   // CLI11 answers an unknown command with "A subcommand is required": name it and the commands.
   if (argc > 1 && argv[1][0] != '-') {
     std::string commands;
