@@ -191,6 +191,24 @@ void Loader::check_free_dofs() {
               " free DOFs; lower options.num_modes or refine the mesh");
 }
 
+// Sensors that all read fixed DOFs see zero in every model shape: no shape can be compared, and
+// every shape term would divide by zero (NaN results with exit 0).
+void Loader::check_sensors_move(const Field& f) const {
+  if (problem_.sensors.empty()) return;
+  std::string fixed_by;
+  for (const Sensor& s : problem_.sensors) {
+    const auto fixing = std::find_if(model_.fixed.begin(), model_.fixed.end(), [&](const FixedDofs& x) {
+      return x.components[static_cast<size_t>(s.component)] &&
+             std::find(x.nodes.begin(), x.nodes.end(), s.node) != x.nodes.end();
+    });
+    if (fixing == model_.fixed.end()) return;
+    if (fixed_by.empty()) fixed_by = s.label + " is fixed by '" + fixing->name + "'";
+  }
+  fail(f, "every sensor reads a fixed DOF (" + fixed_by +
+              (problem_.sensors.size() > 1 ? ", and so on" : "") +
+              "): the model's shapes are zero there, so none can be compared; place sensors where the model moves");
+}
+
 // Refuses, before it is made, a mesh whose modal solve would exhaust the memory (or overflow the
 // indices): such a run would otherwise grow for minutes and end killed, without a word.
 void Loader::check_mesh_size(double nodes, double extra_bytes, const Field& at, const std::string& remedy) const {

@@ -310,6 +310,10 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
     throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
   }
   check_free_dofs();
+  if (const Field* f = top.find("sensors") ? top.find("sensors") : top.find("measured")) {
+    enter(*f);
+    check_sensors_move(*f);
+  }
   // Effects act on the finished model.
   if (const Field* f = top.find("effects")) {
     enter(*f);
