@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "modalcal/model_change.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/synthesis.hpp"
 
@@ -106,10 +107,13 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
     p = from_report(*problem, choice.source);
     problem->source_files.push_back(choice.source);  // read too: no output may replace it
   }
+  std::vector<std::string> set;  // names given to --set: a second value would silently win
   for (const std::string& a : choice.assignments) {
     const size_t eq = a.find('=');
     if (eq == std::string::npos) throw InputError("--set " + a + ": expected NAME=VALUE");
     const std::string name = a.substr(0, eq);
+    if (std::find(set.begin(), set.end(), name) != set.end()) throw InputError("--set " + name + " is given twice");
+    set.push_back(name);
     const double value = parse_value(a.substr(eq + 1), "--set " + name);
     const int j = problem->find_parameter(name);
     if (j >= 0) {
@@ -119,13 +123,16 @@ Vector choose_parameters(Problem* problem, const ParameterChoice& choice) {
     const PropertyId id = problem->model.find_property(name);
     if (id == kNoProperty) {
       std::string known;
-      for (const Parameter& q : problem->parameters) known += " " + q.name;
-      throw InputError("--set " + name + ": neither a parameter (" + (known.empty() ? " none" : known) +
-                       ") nor a model property (<entity>.<property>, e.g. foam.G)");
+      for (const Parameter& q : problem->parameters) known += (known.empty() ? "" : ", ") + q.name;
+      throw InputError("--set " + name + ": neither a parameter (" + (known.empty() ? "none" : known) +
+                       ") nor a property the model has (<entity>.<property>, e.g. foam.G; a scale factor or a "
+                       "joint's component exists only where the problem file gives it)");
     }
     for (const Parameter& q : problem->parameters)
       for (PropertyId t : q.targets)
         if (t == id) throw InputError("--set " + name + ": this property is set by parameter '" + q.name + "'; set that instead");
+    if (const std::string why = property_range_violation(name, value); !why.empty())
+      throw InputError("--set " + name + ": " + why);
     problem->model.properties[id].value = value;
   }
   check_parameter_values(*problem, p);
