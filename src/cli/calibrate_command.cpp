@@ -287,9 +287,8 @@ int run_calibrate(const CalibrateArgs& args) {
   Problem problem = load_problem_with_measurements(args.problem, LoadOptions{args.refine});
   if (!args.vtu.empty()) create_output_directory("--vtu", args.vtu);  // a file there: refused before the run
   if (!args.uncertainty_plot.empty()) {  // refused before the run, like --vtu
-    const std::string extension = std::filesystem::path(args.uncertainty_plot).extension().string();
-    if (extension != ".png" && extension != ".svg")
-      throw InputError("--uncertainty-plot " + args.uncertainty_plot + ": the file name must end in .png or .svg");
+    if (const std::string problem_with_name = plot_name_problem(args.uncertainty_plot); !problem_with_name.empty())
+      throw InputError("--uncertainty-plot " + args.uncertainty_plot + ": " + problem_with_name);
     check_output_path(args.uncertainty_plot, problem.source_files);
     check_output_path(with_suffix(args.uncertainty_plot, "_profiles"), problem.source_files);
   }
@@ -297,6 +296,14 @@ int run_calibrate(const CalibrateArgs& args) {
   for (const std::string* out : {&args.json, &args.history_plot})
     if (!out->empty()) check_output_path(*out, problem.source_files);
   if (!args.csv.empty()) check_output_path(args.csv + "_parameters.csv", problem.source_files);
+  // The files an option's name only begins (--csv PREFIX, the profiles beside --uncertainty-plot) too.
+  std::vector<std::pair<std::string, std::string>> outputs = {
+      {"--json", args.json}, {"--history-plot", args.history_plot}, {"--uncertainty-plot", args.uncertainty_plot}};
+  if (!args.uncertainty_plot.empty())
+    outputs.emplace_back("--uncertainty-plot", with_suffix(args.uncertainty_plot, "_profiles"));
+  if (!args.csv.empty())
+    for (const char* table : {"_parameters.csv", "_modes.csv", "_history.csv"}) outputs.emplace_back("--csv", args.csv + table);
+  check_outputs_apart(outputs);
   require_parameters(problem);
   print_warnings(problem);
   ObjectiveOptions objective_options;
@@ -352,7 +359,7 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
                   "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
   cmd->add_option("--history-plot", args->history_plot,
                   "plot objective and gradient norm against iteration to this .png or .svg file")
-      ->check(OutputFile());
+      ->check(PlotFile());
   cmd->add_option("--vtu", args->vtu,
                   "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
                   "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");

@@ -41,15 +41,17 @@ struct CampaignArgs {
   int jobs = 0;  // data sets calibrated at a time in threads; 0: one per core
 };
 
-/// The data files named: files as given, folders expanded to their .yaml files in name order.
-std::vector<std::string> data_files(const std::vector<std::string>& given) {
+/// The data files named: files as given, folders expanded to their .yaml files in name order
+/// (but `problem`, which may sit beside its data).
+std::vector<std::string> data_files(const std::vector<std::string>& given, const std::string& problem) {
   std::vector<std::string> files;
   for (const std::string& item : given) {
     std::error_code error;
     if (fs::is_directory(item, error)) {
       std::vector<std::string> in_folder;
       for (const fs::directory_entry& e : fs::directory_iterator(item))
-        if (e.is_regular_file() && (e.path().extension() == ".yaml" || e.path().extension() == ".yml"))
+        if (e.is_regular_file() && (e.path().extension() == ".yaml" || e.path().extension() == ".yml") &&
+            !fs::equivalent(e.path(), problem, error))  // the problem itself, kept beside its data
           in_folder.push_back(e.path().string());
       std::sort(in_folder.begin(), in_folder.end());
       if (in_folder.empty()) throw InputError("campaign: folder " + item + " holds no .yaml data file");
@@ -294,7 +296,7 @@ int run_campaign(const CampaignArgs& args) {
     throw InputError("campaign: no measured data sets to calibrate (or --merge the JSON of earlier parts)");
   if (!args.data.empty() && !args.merge.empty())
     throw InputError("campaign: measured data sets and --merge together; calibrate the data sets, then merge");
-  const std::vector<std::string> files = data_files(args.data);
+  const std::vector<std::string> files = data_files(args.data, args.problem);
   std::vector<std::string> inputs = problem.source_files;
   for (const std::string& f : files) inputs.push_back(fs::absolute(f).string());
   for (const std::string& f : args.merge) inputs.push_back(fs::absolute(f).string());
@@ -358,7 +360,7 @@ void register_campaign_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--json", args->json, "write every run and the summary as JSON to this file")->check(OutputFile());
   cmd->add_option("--plot", args->plot,
                   "draw the calibrated values (.png or .svg): each parameter's histogram and every pair's scatter")
-      ->check(OutputFile());
+      ->check(PlotFile());
   cmd->add_option("--significance", args->significance,
                   "level of the test that a parameter varies between tests (default 0.01)")
       ->check(FiniteRange(1e-6, 0.5));

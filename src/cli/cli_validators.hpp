@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "cli/cli_common.hpp"
+#include "cli/plot.hpp"
 #include "modalcal/output.hpp"
 
 namespace modalcal::cli {
@@ -68,12 +69,45 @@ inline CLI::Validator OutputFile() {
       .name(kOutputFileValidator);
 }
 
-/// Two of `command`'s output files (options checked by OutputFile()) naming one file would leave
-/// only the one written last, and exit 0: refused before the run. Devices (/dev/stdout) take both.
+/// An output file for a plot: as OutputFile(), and named .png or .svg, checked before the run
+/// rather than after it.
+inline CLI::Validator PlotFile() {
+  return CLI::Validator(
+             [](std::string& text) -> std::string {
+               if (const std::string problem = plot_name_problem(text); !problem.empty()) return problem;
+               try {
+                 check_output_path(text, {});
+               } catch (const std::invalid_argument& e) {
+                 return e.what();
+               }
+               return "";
+             },
+             "FILE")
+      .name(kOutputFileValidator);
+}
+
+/// Refuses two of `outputs` (the option, its file) that name one file: only the one written last
+/// would be left, with exit 0. Devices such as /dev/stdout may take several.
 /// \throws std::invalid_argument naming both options.
-inline void check_distinct_outputs(CLI::App& command) {
+inline void check_outputs_apart(const std::vector<std::pair<std::string, std::string>>& outputs) {
   namespace fs = std::filesystem;
   std::vector<std::pair<fs::path, std::string>> seen;  // the file, the option that names it
+  for (const auto& [option, path] : outputs) {
+    std::error_code error;
+    if (path.empty() || (fs::exists(path, error) && !fs::is_regular_file(path, error))) continue;
+    const fs::path file = fs::weakly_canonical(path, error);
+    for (const auto& [other, name] : seen)
+      if (other == file)
+        throw std::invalid_argument(name + " and " + option + " both name '" + path +
+                                    "': one would overwrite the other; give each output its own file");
+    seen.emplace_back(file, option);
+  }
+}
+
+/// check_outputs_apart() on `command`'s output files (options checked by OutputFile() or
+/// PlotFile()), once parsing completes: before the run.
+inline void check_distinct_outputs(CLI::App& command) {
+  std::vector<std::pair<std::string, std::string>> outputs;
   for (CLI::Option* option : command.get_options()) {
     if (option->count() == 0) continue;
     try {
@@ -81,17 +115,9 @@ inline void check_distinct_outputs(CLI::App& command) {
     } catch (const CLI::OptionNotFound&) {
       continue;
     }
-    for (const std::string& path : option->results()) {
-      std::error_code error;
-      if (fs::exists(path, error) && !fs::is_regular_file(path, error)) continue;
-      const fs::path file = fs::weakly_canonical(path, error);
-      for (const auto& [other, name] : seen)
-        if (other == file)
-          throw std::invalid_argument(name + " and " + option->get_name() + " both name '" + path +
-                                      "': one would overwrite the other; give each output its own file");
-      seen.emplace_back(file, option->get_name());
-    }
+    for (const std::string& path : option->results()) outputs.emplace_back(option->get_name(), path);
   }
+  check_outputs_apart(outputs);
 }
 
 }  // namespace modalcal::cli

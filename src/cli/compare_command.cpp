@@ -237,9 +237,9 @@ void register_compare_command(CLI::App& app, int* exit_code) {
       ->check(finite_number())
       ->check(FiniteRange(0.0, 1.0));
   cmd->add_option("--mac-plot", args->mac_plot, "plot the MAC matrix to this .png or .svg file")
-      ->check(OutputFile());
+      ->check(PlotFile());
   cmd->add_option("--error-plot", args->error_plot, "plot the frequency errors to this .png or .svg file")
-      ->check(OutputFile());
+      ->check(PlotFile());
   cmd->callback([args, exit_code] { *exit_code = run_compare(*args); });
 }
 

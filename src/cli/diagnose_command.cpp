@@ -561,7 +561,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file")->check(OutputFile());
   cmd->add_option("--plot", args->plot,
                   "plot the chi-square per step against the noise band, and each mode's frequency error before "
-                  "and after (.png or .svg)")->check(OutputFile());
+                  "and after (.png or .svg)")->check(PlotFile());
   cmd->add_option("--write-problem", args->write_problem,
                   "write the problem with the kept effects enabled and the final values as starts (YAML), for "
                   "calibrate")->check(OutputFile());
@@ -570,7 +570,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "directory");
   cmd->add_option("--map", args->map,
                   "draw the screen map (.png or .svg): where an added mass, spring or region scale would remove "
-                  "the most chi-square")->check(OutputFile());
+                  "the most chi-square")->check(PlotFile());
   cmd->add_option("--region-size", args->region_size,
                   "size of the block regions screened, in element sizes (default 3)")
       ->check(finite_number())

@@ -17,6 +17,11 @@ namespace modalcal {
 
 namespace fs = std::filesystem;
 
+std::string plot_name_problem(const std::string& path) {
+  const std::string extension = fs::path(path).extension().string();
+  return extension == ".png" || extension == ".svg" ? "" : "the file name must end in .png or .svg";
+}
+
 namespace {
 
 std::string quoted(const std::string& s) {
@@ -30,9 +35,9 @@ std::string quoted(const std::string& s) {
 /// (write_file_atomically: a device such as /dev/stdout stays one).
 void render(const std::string& path, int width, int height,
             const std::function<void(std::ostream& script, const fs::path& work)>& write_body) {
+  if (const std::string problem = plot_name_problem(path); !problem.empty())
+    throw std::invalid_argument("plot '" + path + "': " + problem);
   const std::string extension = fs::path(path).extension().string();
-  if (extension != ".png" && extension != ".svg")
-    throw std::invalid_argument("plot '" + path + "': the file name must end in .png or .svg");
   if (std::system("command -v gnuplot >/dev/null 2>&1") != 0)
     throw std::runtime_error("plot '" + path + "': gnuplot is not installed (Debian: apt-get install gnuplot-nox)");
   const fs::path work = fs::temp_directory_path() / ("modalcal-plot-" + std::to_string(::getpid()));

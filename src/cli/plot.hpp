@@ -13,6 +13,9 @@
 
 namespace modalcal {
 
+/// Why `path` cannot name a plot ("" when it can): its extension must be .png or .svg.
+std::string plot_name_problem(const std::string& path);
+
 struct PlotSeries {
   std::string title;
   std::vector<double> x, y;
