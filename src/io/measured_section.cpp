@@ -215,7 +215,9 @@ void Loader::read_measured(const Field& f) {
   } else if (which.key == "file") {
     read_measured_file(which);
   } else {
-    for (const Field& item : list(which)) {
+    const std::vector<Field> items = list(which);
+    if (items.empty()) fail(which, "'modes' is empty; list the measured modes, or leave out the 'measured' section");
+    for (const Field& item : items) {
       problem_.measured.push_back(measured_mode(item, false));
       check_paired_once(item);
     }

@@ -111,6 +111,8 @@ std::vector<Field> Loader::entries(const Field& f, const std::string& what) cons
     const int line = kv.first.Mark().line + 1;
     if (!kv.first.IsScalar())
       fail_at(line, what, "keys must be plain names, got " + describe(kv.first) + " in " + where);
+    if (kv.first.Scalar().empty())
+      fail_at(line, what, "an empty name as a key in " + where + "; every key and name has at least one character");
     for (const Field& other : out)
       if (other.key == kv.first.Scalar())
         fail_at(line, what,
@@ -424,6 +426,9 @@ Problem load_problem(const std::string& path, const LoadOptions& options) {
     const int line = extends.Mark().line + 1;
     if (!extends.IsScalar())
       throw ProblemError(file, line, "'extends' must name a problem file, got " + describe(extends));
+    // A NUL would end the name at the system's call and open another file than the one written.
+    if (extends.Scalar().find('\0') != std::string::npos)
+      throw ProblemError(file, line, "'extends' holds a NUL character; name the problem file plainly");
     const std::string base_path = (std::filesystem::path(file).parent_path() / extends.Scalar()).string();
     if (const std::string reason = detail::unreadable_reason(base_path, "problem file", detail::kMostYamlBytes);
         !reason.empty())
