@@ -48,39 +48,35 @@ inline CLI::Validator SeedText() {
       "UINT64");
 }
 
+/// The name OutputFile() and PlotFile() give their validators, by which check_distinct_outputs()
+/// finds the outputs.
+inline const char* const kOutputFileValidator = "output-file";
+
+/// Why `path` cannot be written (check_output_path()), or "" when it can.
+inline std::string output_path_problem(const std::string& path) {
+  try {
+    check_output_path(path, {});
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
 /// An output file that can be written: its folder exists and takes a new file, its name is within
 /// the file system's limit (check_output_path()). Checked when the options are parsed, so that
 /// every command refuses it before it computes anything; whether it names an input is checked
 /// once the inputs are known.
-/// The name OutputFile() gives its validator, by which check_distinct_outputs() finds the outputs.
-inline const char* const kOutputFileValidator = "output-file";
-
 inline CLI::Validator OutputFile() {
-  return CLI::Validator(
-             [](std::string& text) -> std::string {
-               try {
-                 check_output_path(text, {});
-               } catch (const std::invalid_argument& e) {
-                 return e.what();
-               }
-               return "";
-             },
-             "FILE")
-      .name(kOutputFileValidator);
+  return CLI::Validator([](std::string& text) { return output_path_problem(text); }, "FILE").name(kOutputFileValidator);
 }
 
 /// An output file for a plot: as OutputFile(), and named .png or .svg, checked before the run
 /// rather than after it.
 inline CLI::Validator PlotFile() {
   return CLI::Validator(
-             [](std::string& text) -> std::string {
-               if (const std::string problem = plot_name_problem(text); !problem.empty()) return problem;
-               try {
-                 check_output_path(text, {});
-               } catch (const std::invalid_argument& e) {
-                 return e.what();
-               }
-               return "";
+             [](std::string& text) {
+               const std::string problem = plot_name_problem(text);
+               return problem.empty() ? output_path_problem(text) : problem;
              },
              "FILE")
       .name(kOutputFileValidator);
