@@ -71,12 +71,11 @@ bool binary_58_header(const std::string& line, long* ascii_lines, long* bytes) {
 std::vector<std::string> uff_lines(const std::string& text, std::map<int, long>* binary) {
   std::vector<std::string> lines;
   size_t at = 0;
-  auto next_line = [&] {
-    const size_t end = text.find('\n', at);
-    std::string line = text.substr(at, end == std::string::npos ? std::string::npos : end - at);
-    at = end == std::string::npos ? text.size() : end + 1;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    lines.push_back(line);
+  auto next_line = [&] {  // a line ends at LF, CRLF or a lone CR (classic Mac)
+    const size_t end = text.find_first_of("\r\n", at);
+    lines.push_back(text.substr(at, end == std::string::npos ? std::string::npos : end - at));
+    const bool crlf = end != std::string::npos && text[end] == '\r' && end + 1 < text.size() && text[end + 1] == '\n';
+    at = end == std::string::npos ? text.size() : end + (crlf ? 2 : 1);
   };
   while (at < text.size()) {
     next_line();
