@@ -616,6 +616,8 @@ std::vector<Row> Rows() {
       {"scale-length-negative", "`scale_length: -1`",
        {{"u.uff", uff}, {"problem.yaml", base + "measured:\n  test_data: {file: u.uff, scale_length: -1}\n"}},
        "modes <dir>/problem.yaml", 2, "problem.yaml:15: measured test_data: 'scale_length' must be positive, got -1"},
+      {"uff-cr-line-ends", "a universal file with classic-Mac CR line ends: read line by line",
+       {{"cr.uff", CrLineEnds(uff)}}, "import-test-data <dir>/cr.uff", 0, "dataset 55, line 21"},
       {"csv-bom", "a CSV with the UTF-8 byte-order mark and CRLF lines (as Excel writes)",
        {{"excel.csv", "\xEF\xBB\xBF" "mode,frequency_hz,node,direction,value\r\n1,2.5,3,x,1.0\r\n"}},
        "import-test-data <dir>/excel.csv", 0, "modes: 1"},
