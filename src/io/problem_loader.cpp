@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <climits>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -176,12 +178,26 @@ const Field& Loader::exactly_one(const Fields& fs, const std::vector<std::string
 
 double Loader::number(const Field& f) const {
   double v = 0;
-  if (!f.node.IsScalar() || !YAML::convert<double>::decode(f.node, v))
-    fail(f, "expected a number for " + f.name() + ", got " + describe(f.node));
+  if (f.node.IsScalar() && !YAML::convert<double>::decode(f.node, v)) v = out_of_range_number(f);
+  else if (!f.node.IsScalar()) fail(f, "expected a number for " + f.name() + ", got " + describe(f.node));
   if (!std::isfinite(v))
     fail(f,
          f.name() + " is " + (std::isnan(v) ? "NaN" : "infinite") + "; expected a finite number");
   return v;
+}
+
+// yaml-cpp refuses a number beyond a double's range as no number at all: an overflow is named as
+// such, and an underflow (1e-320) is the tiny value it is.
+double Loader::out_of_range_number(const Field& f) const {
+  const std::string& text = f.node.Scalar();
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text.c_str(), &end);
+  const bool whole = !text.empty() && end == text.c_str() + text.size();
+  if (whole && errno == ERANGE && std::abs(v) < 1) return v;
+  if (whole && errno == ERANGE)
+    fail(f, f.name() + " = " + excerpt(text, 60) + " lies beyond the range of a double (magnitudes up to about 1.8e308)");
+  fail(f, "expected a number for " + f.name() + ", got " + describe(f.node));
 }
 
 double Loader::positive(const Field& f) const {

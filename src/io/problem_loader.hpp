@@ -117,6 +117,7 @@ class Loader {
   const Field& required(const Fields& fs, const std::string& key) const;
   const Field& exactly_one(const Fields& fs, const std::vector<std::string>& keys) const;
   double number(const Field& f) const;
+  double out_of_range_number(const Field& f) const;
   double positive(const Field& f) const;
   double non_negative(const Field& f) const;
   long integer(const Field& f) const;
