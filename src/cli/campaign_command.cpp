@@ -61,16 +61,9 @@ std::vector<std::string> data_files(const std::vector<std::string>& given, const
     }
   }
   // A test counted twice would weigh double and make the tests look more alike than they are.
-  std::vector<fs::path> seen;
-  for (const std::string& file : files) {
-    std::error_code error;
-    const fs::path canonical = fs::weakly_canonical(file, error);
-    const auto it = std::find(seen.begin(), seen.end(), canonical);
-    if (it != seen.end())
-      throw InputError("campaign: data file " + file + " is given twice (also as " +
-                       files[static_cast<size_t>(it - seen.begin())] + "); each test counts once");
-    seen.push_back(canonical);
-  }
+  if (const auto twice = same_file_twice(files))
+    throw InputError("campaign: data file " + files[twice->second] + " is given twice (also as " +
+                     files[twice->first] + "); each test counts once");
   return files;
 }
 

@@ -82,22 +82,32 @@ inline CLI::Validator PlotFile() {
       .name(kOutputFileValidator);
 }
 
+/// The first pair (earlier, later) of `paths` that name one file (through `./`, `..` or a
+/// symlink too), or nullopt. Empty paths and devices (/dev/stdout, which several may share) are
+/// passed over.
+inline std::optional<std::pair<size_t, size_t>> same_file_twice(const std::vector<std::string>& paths) {
+  namespace fs = std::filesystem;
+  std::vector<std::pair<fs::path, size_t>> seen;  // the file, the index of the path that names it
+  for (size_t k = 0; k < paths.size(); ++k) {
+    std::error_code error;
+    if (paths[k].empty() || (fs::exists(paths[k], error) && !fs::is_regular_file(paths[k], error))) continue;
+    const fs::path file = fs::weakly_canonical(paths[k], error);
+    for (const auto& [other, index] : seen)
+      if (other == file) return std::make_pair(index, k);
+    seen.emplace_back(file, k);
+  }
+  return std::nullopt;
+}
+
 /// Refuses two of `outputs` (the option, its file) that name one file: only the one written last
-/// would be left, with exit 0. Devices such as /dev/stdout may take several.
+/// would be left, with exit 0.
 /// \throws std::invalid_argument naming both options.
 inline void check_outputs_apart(const std::vector<std::pair<std::string, std::string>>& outputs) {
-  namespace fs = std::filesystem;
-  std::vector<std::pair<fs::path, std::string>> seen;  // the file, the option that names it
-  for (const auto& [option, path] : outputs) {
-    std::error_code error;
-    if (path.empty() || (fs::exists(path, error) && !fs::is_regular_file(path, error))) continue;
-    const fs::path file = fs::weakly_canonical(path, error);
-    for (const auto& [other, name] : seen)
-      if (other == file)
-        throw std::invalid_argument(name + " and " + option + " both name '" + path +
-                                    "': one would overwrite the other; give each output its own file");
-    seen.emplace_back(file, option);
-  }
+  std::vector<std::string> paths;
+  for (const auto& output : outputs) paths.push_back(output.second);
+  if (const auto twice = same_file_twice(paths))
+    throw std::invalid_argument(outputs[twice->first].first + " and " + outputs[twice->second].first + " both name '" +
+                                paths[twice->second] + "': one would overwrite the other; give each output its own file");
 }
 
 /// check_outputs_apart() on `command`'s output files (options checked by OutputFile() or
