@@ -626,6 +626,14 @@ TEST(MeshFileErrors, ExodusFilesThatAreNotUsableMeshes) {
   ExpectMeshError(plane_path, {"is a 2-D mesh (num_dim = 2)"});
 
   ExpectMeshError(WriteTempFile("text.exo", "not a netCDF file\n"), {"is not an Exodus II file"});
+
+  // A copy cut short inside its data: netCDF reads the missing values as fill values, which
+  // showed up as "refers to node 0" or zero coordinates, far from the cause.
+  std::ifstream in(good, std::ios::binary);
+  const std::string whole{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  for (const size_t cut : {size_t{4}, size_t{40}})
+    ExpectMeshError(WriteTempFile("cut_short.exo", whole.substr(0, whole.size() - cut)),
+                    {"is cut short", "would end at byte", "but the file has " + std::to_string(whole.size() - cut)});
 }
 
 // ---------------------------------------------------------------------------- problem files

@@ -51,7 +51,9 @@ class ClassicHeader {
       dimensions_.push_back(name("dimension"));
       // Nodes, elements and set members have data in the file, of at least a byte each: a longer
       // dimension is damage, and the reader would allocate by it (num_elem = 5.9e8 asked for 4.7 GB).
-      if (const uint64_t length = size(); !stop_ && length > file_bytes_)
+      const uint64_t length = size();
+      dimension_lengths_.push_back(length);
+      if (!stop_ && length > file_bytes_)
         fail("dimension '" + excerpt(dimensions_.back(), 40) + "' has length " + std::to_string(length) +
              ", more than the file's " + std::to_string(file_bytes_) + " bytes can hold");
     }
@@ -60,6 +62,7 @@ class ClassicHeader {
     for (uint64_t v = 0; v < vars && !stop_; ++v) {
       const std::string variable = name("variable");
       std::vector<std::string> shape;
+      std::vector<uint64_t> lengths;
       const uint64_t rank = count("variable dimensions", version_ == 5 ? 8 : 4);
       for (uint64_t k = 0; k < rank && !stop_; ++k) {
         const uint64_t id = size();
@@ -68,12 +71,14 @@ class ClassicHeader {
           fail("a variable has dimension id " + std::to_string(id) + ", but the file has " + std::to_string(dims) +
                " dimensions");
         shape.push_back(dimensions_[static_cast<size_t>(id)]);
+        lengths.push_back(dimension_lengths_[static_cast<size_t>(id)]);
       }
       if (!stop_) check_shape(variable, shape);
       attributes("variable attribute");
-      type();
-      size();                                   // vsize
-      take(version_ == 1 ? 4 : 8, "a variable's data offset");  // begin
+      const uint64_t bytes_per_value = type();
+      size();                                                                 // vsize
+      const uint64_t begin = take(version_ == 1 ? 4 : 8, "a variable's data offset");
+      if (!stop_) check_data_in_file(variable, lengths, bytes_per_value, begin);
     }
     if (stop_) return;
     std::sort(dimensions_.begin(), dimensions_.end());
@@ -177,6 +182,22 @@ class ClassicHeader {
            expected[0] + (expected.size() > 1 ? ", " + expected[1] : "") + ")");
     }
   }
+  // netCDF reads a variable whose data lies past the end of a cut-short file as fill values, so
+  // a truncated copy would give zero coordinates or node 0 in a connectivity, far from the cause.
+  // Record variables (first dimension unlimited, of length 0 here) are not checked: Exodus keeps
+  // only results there, which the reader does not use.
+  void check_data_in_file(const std::string& variable, const std::vector<uint64_t>& lengths, uint64_t bytes_per_value,
+                          uint64_t begin) const {
+    if (!lengths.empty() && lengths.front() == 0) return;
+    uint64_t bytes = bytes_per_value;  // saturates at file_bytes_ + 1: more than any file can hold
+    for (const uint64_t length : lengths)
+      bytes = length != 0 && bytes > file_bytes_ / length ? file_bytes_ + 1 : bytes * length;
+    if (bytes == 0 || (begin <= file_bytes_ && bytes <= file_bytes_ - begin)) return;
+    const std::string end = bytes > file_bytes_ || begin > file_bytes_ ? "beyond byte " + std::to_string(file_bytes_)
+                                                                       : "at byte " + std::to_string(begin + bytes);
+    mesh_error(path_, "is cut short (an incomplete copy or download?): the data of variable '" + excerpt(variable, 40) +
+                          "' would end " + end + ", but the file has " + std::to_string(file_bytes_) + " bytes");
+  }
   uint64_t type() {
     const uint64_t t = take(4, "a type");
     static const int sizes[] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};
@@ -212,6 +233,7 @@ class ClassicHeader {
   size_t at_ = 0;
   uint64_t file_bytes_ = 0;
   std::vector<std::string> dimensions_;  // by id
+  std::vector<uint64_t> dimension_lengths_;  // by id
   std::set<std::string> variables_;
 };
 
