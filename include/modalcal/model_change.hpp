@@ -130,11 +130,16 @@ MODALCAL_EXPORT ModelEffect describe_model_change(const Model& model, const Mode
 /// A name whose entity is unknown is returned as it is.
 MODALCAL_EXPORT std::string describe_property(const Model& model, const std::string& property_name);
 
+/// The largest magnitude a number given by a user (in a problem file, a model change or `--set`)
+/// may have. No quantity in a consistent unit system comes near it; beyond it, sums of squares in
+/// the assembly, the eigen-solve and the misfit overflow, and a run would fail far from the cause.
+inline constexpr double kLargestInputMagnitude = 1e100;
+
 /// Why `value` lies outside the physical range of a property, or "" when it lies inside: E, K, G
 /// and the scale factors must be positive, Poisson's ratio nu must lie in (-1, 0.5), every other
-/// property (density, stiffness components, masses, inertias) must not be negative. `property` is
-/// the property's key (`E`) or its full name (`steel.E`). Example: ("steel.nu", 0.5) gives
-/// "Poisson's ratio must lie in (-1, 0.5), got 0.5".
+/// property (density, stiffness components, masses, inertias) must not be negative, and no finite
+/// value may exceed kLargestInputMagnitude. `property` is the property's key (`E`) or its full
+/// name (`steel.E`). Example: ("steel.nu", 0.5) gives "Poisson's ratio must lie in (-1, 0.5), got 0.5".
 MODALCAL_EXPORT std::string property_range_violation(const std::string& property, double value);
 
 /// The value a property of `model` has when it is absent: 1 for a scale factor, +infinity for a

@@ -29,6 +29,7 @@
 #include "support/text_util.hpp"
 #include "modalcal/assembly.hpp"
 #include "modalcal/mesh_file.hpp"
+#include "modalcal/model_change.hpp"
 #include "modalcal/problem_file.hpp"
 
 namespace modalcal {
@@ -183,6 +184,9 @@ double Loader::number(const Field& f) const {
   if (!std::isfinite(v))
     fail(f,
          f.name() + " is " + (std::isnan(v) ? "NaN" : "infinite") + "; expected a finite number");
+  if (std::abs(v) > kLargestInputMagnitude)
+    fail(f, f.name() + " = " + format(v) + " is larger than any value a problem takes (at most " +
+                format(kLargestInputMagnitude) + "): the assembly, eigen-solve or misfit would overflow");
   return v;
 }
 

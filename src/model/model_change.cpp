@@ -609,6 +609,9 @@ std::string property_range_violation(const std::string& property, double value) 
   if (key == "nu" && !(value > -1 && value < 0.5))
     return "Poisson's ratio must lie in (-1, 0.5), got " + format_round_trip(value);
   if (!positive && key != "nu" && !(value >= 0)) return key + " must not be negative, got " + format_round_trip(value);
+  if (std::isfinite(value) && std::abs(value) > kLargestInputMagnitude)
+    return key + " = " + format_round_trip(value) + " is larger than any value a problem takes (at most " +
+           format_round_trip(kLargestInputMagnitude) + ")";
   return "";
 }
 
