@@ -1,7 +1,9 @@
 #include "cli/cli_common.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -58,14 +60,14 @@ Vector from_report(const Problem& problem, const std::string& path) {
 }  // namespace
 
 std::optional<double> finite_number(const std::string& text) {
-  size_t used = 0;
-  double v = 0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-  if (used != text.size() || !std::isfinite(v)) return std::nullopt;
+  // strtod, not stod: stod throws on an underflow (1e-320), which is the tiny number it is, as
+  // in problem files; an overflow (1e400) is no finite number.
+  if (text.empty()) return std::nullopt;
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || !std::isfinite(v)) return std::nullopt;
+  if (errno == ERANGE && std::abs(v) >= 1) return std::nullopt;
   return v;
 }
 
