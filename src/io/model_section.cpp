@@ -242,6 +242,29 @@ void Loader::read_reference_nodes(const Field& f) {
     // Ids continue after the mesh's, so every node keeps the id it is created with.
     const long id = next_node_id_++;
     reference_nodes_[entry.key] = node_of_id_[id] = model_.add_node(id, vec3(entry), true);
+    locations_["reference node " + quote(entry.key)] = {current_file_, entry.line};
+  }
+}
+
+// A reference node nothing acts on has DOFs without stiffness or mass, which the assembly could
+// only report by node id, with no file or line; here it is named where it is declared.
+void Loader::check_reference_nodes_used() const {
+  auto in = [](const std::vector<int>& nodes, int node) {
+    return std::find(nodes.begin(), nodes.end(), node) != nodes.end();
+  };
+  for (const auto& [name, node] : reference_nodes_) {
+    bool used = false;
+    for (const RigidCoupling& r : model_.rigid_couplings) used = used || r.reference == node || in(r.nodes, node);
+    for (const Joint& j : model_.joints) used = used || j.node_a == node || j.node_b == node;
+    for (const PointMass& m : model_.point_masses) used = used || m.node == node;
+    for (const GroundSpring& g : model_.ground_springs) used = used || in(g.nodes, node);
+    for (const FixedDofs& f : model_.fixed) used = used || in(f.nodes, node);
+    if (used) continue;
+    const Location& at = locations_.at("reference node " + quote(name));
+    throw ProblemError(at.file, at.line,
+                       "reference node " + quote(name) +
+                           " is used by no rigid coupling, joint, spring, point mass or support: its DOFs would "
+                           "have neither stiffness nor mass (remove it, or connect it)");
   }
 }
 

@@ -331,6 +331,7 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
     const Location at = location_of_model_error(e.what());
     throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
   }
+  check_reference_nodes_used();
   check_free_dofs();
   if (const Field* f = top.find("sensors") ? top.find("sensors") : top.find("measured")) {
     enter(*f);

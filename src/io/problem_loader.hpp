@@ -132,6 +132,7 @@ class Loader {
   void read_box_mesh(const Fields& fs);
   void read_mesh_file(const Fields& fs);
   void check_free_dofs();
+  void check_reference_nodes_used() const;
   void check_sensors_move(const Field& f) const;
   void check_mesh_size(double nodes, double extra_bytes, const Field& at, const std::string& remedy) const;
   void add_mesh_node(long id, const Vec3& x);
