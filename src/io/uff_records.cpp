@@ -192,8 +192,10 @@ std::vector<double> UffRecords::whole_numbers(int count, const std::string& what
   const int at = line();
   std::vector<double> out = numbers(count, what, per_line);
   for (double v : out)
-    if (v != std::floor(v) || std::abs(v) > 2e9)
-      fail(at, what + ": expected whole numbers, found " + std::to_string(v));
+    if (v != std::floor(v))
+      fail(at, what + ": expected whole numbers, found " + option_text(v));
+    else if (std::abs(v) > 2e9)
+      fail(at, what + ": " + option_text(v) + " is too large; whole-number fields hold at most 2e9 here");
   return out;
 }
 
