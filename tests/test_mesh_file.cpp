@@ -464,7 +464,9 @@ node_sets:
 
   // Node ids are the file's (1001, ...): a sensor and a reference node see them.
   const std::string with_sensor = WriteTempFile(
-      "sensor.yaml", "mesh: {file: beam.exo}" + blocks + "reference_nodes:\n  hub: [0.7, 0.1, 0.05]\nsensors:\n  - {node: 1005, directions: [z]}\n");
+      "sensor.yaml", "mesh: {file: beam.exo}" + blocks + "reference_nodes:\n  hub: [0.7, 0.1, 0.05]\n" +
+                         "point_masses:\n  hub_mass: {node: hub, mass: 0.1, inertia: [1e-4, 1e-4, 1e-4]}\n" +
+                         "sensors:\n  - {node: 1005, directions: [z]}\n");
   const Problem c = LoadProblem(with_sensor);
   ASSERT_EQ(c.sensors.size(), 1u);
   EXPECT_EQ(c.model.coordinates[c.sensors[0].node], written.coordinates[4]);
