@@ -153,12 +153,22 @@ TEST(ModalSolver, MissingSupportIsNamedAsLikelyCause) {
 }
 
 TEST(ModalSolver, NegativeStiffnessIsReportedAsIndefinite) {
+  // A model refuses a negative stiffness (property_range_violation), so the indefinite K is made
+  // here: K - sigma M with sigma between the first two eigenvalues has one negative eigenvalue.
   for (int n : {30, 500}) {  // dense and sparse paths
-    Model model = MakeChain(n, 1.0, 100.0, true);
-    model.properties[model.find_property("joint3.kx")].value = -500.0;
-    const Solved s = SolveModel(model, 3, 0);
-    EXPECT_NE(s.result.status, EigenStatus::Successful) << "n = " << n;
-    EXPECT_NE(s.result.message.find("indefinite"), std::string::npos) << s.result.message;
+    const Model model = MakeChain(n, 1.0, 100.0, true);
+    ParametricSystem system(model, {});
+    SparseMatrix K, M;
+    system.assemble(Vector(), &K, &M);
+    const double sigma = 0.5 * (std::pow(ChainOmega(n, 1.0, 100.0, 1), 2) + std::pow(ChainOmega(n, 1.0, 100.0, 2), 2));
+    const SparseMatrix shifted = K - sigma * M;
+    ModalOptions options;
+    options.num_modes = 3;
+    options.max_rigid_modes = 0;
+    ModalSolver solver(system.pattern(), options);
+    const ModalResult result = solver.solve(shifted, M);
+    EXPECT_NE(result.status, EigenStatus::Successful) << "n = " << n;
+    EXPECT_NE(result.message.find("indefinite"), std::string::npos) << result.message;
   }
 }
 

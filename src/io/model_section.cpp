@@ -45,13 +45,12 @@ void Loader::read_blocks(const Field& f) {
     const Field& a = required(fs, young ? "E" : "K");
     const Field& m = required(fs, young ? "nu" : "G");
     const Field& rho = required(fs, "density");
-    b.modulus_a = add_property(b.name + "." + a.key, a, positive(a));
-    b.modulus_b = add_property(b.name + "." + m.key, m, young ? number(m) : positive(m));
-    b.density = add_property(b.name + ".density", rho, non_negative(rho));
+    b.modulus_a = add_property(b.name + "." + a.key, a, number(a));
+    b.modulus_b = add_property(b.name + "." + m.key, m, number(m));
+    b.density = add_property(b.name + ".density", rho, number(rho));
     if (const Field* s = fs.find("stiffness_scale"))
-      b.stiffness_scale = add_property(b.name + ".stiffness_scale", *s, positive(*s));
-    if (const Field* s = fs.find("mass_scale"))
-      b.mass_scale = add_property(b.name + ".mass_scale", *s, positive(*s));
+      b.stiffness_scale = add_property(b.name + ".stiffness_scale", *s, number(*s));
+    if (const Field* s = fs.find("mass_scale")) b.mass_scale = add_property(b.name + ".mass_scale", *s, number(*s));
     model_.blocks.push_back(b);
   }
 }
@@ -374,7 +373,7 @@ std::array<PropertyId, 6> Loader::stiffness(const std::string& entity, const Fie
   ids.fill(kNoProperty);
   for (int c = 0; c < 6; ++c)
     if (const Field* k = fs.find(kStiffnessComponentNames[c]))
-      ids[c] = add_property(entity + "." + k->key, *k, non_negative(*k));
+      ids[c] = add_property(entity + "." + k->key, *k, number(*k));
   return ids;
 }
 
@@ -398,7 +397,7 @@ void Loader::read_point_masses(const Field& f) {
     m.name = entry.key;
     m.node = node(required(fs, "node"));
     const Field& mass = required(fs, "mass");
-    m.mass = add_property(m.name + ".mass", mass, non_negative(mass));
+    m.mass = add_property(m.name + ".mass", mass, number(mass));
     if (const Field* inertia = fs.find("inertia")) {
       const std::vector<Field> items = list(*inertia);
       if (items.size() != 3)
@@ -406,7 +405,7 @@ void Loader::read_point_masses(const Field& f) {
                            std::to_string(items.size()));
       for (int c = 0; c < 3; ++c)
         m.inertia[c] =
-            add_property(m.name + "." + kInertiaKeys[c], items[c], non_negative(items[c]));
+            add_property(m.name + "." + kInertiaKeys[c], items[c], number(items[c]));
     }
     model_.point_masses.push_back(m);
   }

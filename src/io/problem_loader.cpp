@@ -390,7 +390,10 @@ int Loader::node(const Field& f) const {
   return is_id ? node_by_id(f) : reference_node(f);
 }
 
+// Every property's range is checked here, by the one statement of the ranges that --set, model
+// changes and parameter bounds use too.
 PropertyId Loader::add_property(const std::string& name, const Field& source, double value) {
+  if (const std::string why = property_range_violation(name, value); !why.empty()) fail(source, why);
   locations_["property " + quote(name)] = {current_file_, source.line};
   return model_.add_property(name, value);
 }

@@ -1,5 +1,6 @@
 #include "modalcal/model.hpp"
 
+#include "modalcal/model_change.hpp"
 #include "support/text_util.hpp"
 
 #include <Eigen/LU>
@@ -105,7 +106,6 @@ class ModelCheck {
     if (!names_.insert(name).second)
       fail(kind + " '" + name + "': the name is used by another block, joint, spring or mass");
   }
-  void elastic_constants(const ElementBlock& b, const std::string& where) const;
 
   const Model& m_;
   const int n_;
@@ -117,28 +117,12 @@ void ModelCheck::nodes_and_properties() const {
     fail("model: node arrays have inconsistent sizes");
   for (int i = 0; i < n_; ++i)
     if (!m_.coordinates[i].allFinite()) fail("node " + std::to_string(m_.node_ids[i]) + ": coordinates are not finite");
-  for (const Property& p : m_.properties)
+  // The ranges the problem loader, --set and model changes check too (property_range_violation),
+  // here also for values set later: parameters, refits.
+  for (const Property& p : m_.properties) {
     if (!std::isfinite(p.value)) fail("property '" + p.name + "' is not a finite number");
-}
-
-// As the problem loader requires of the file's values; also for those set later (--set, changes).
-void ModelCheck::elastic_constants(const ElementBlock& b, const std::string& where) const {
-  auto positive_modulus = [&](PropertyId id, const char* what) {
-    if (!(m_.property_value(id) > 0)) {
-      char value[32];
-      std::snprintf(value, sizeof value, "%g", m_.property_value(id));
-      fail(where + ": " + what + " must be positive, got " + value);
-    }
-  };
-  if (b.form == ElasticForm::YoungPoisson) {
-    positive_modulus(b.modulus_a, "Young's modulus E");
-  } else {
-    positive_modulus(b.modulus_a, "bulk modulus K");
-    positive_modulus(b.modulus_b, "shear modulus G");
-  }
-  if (b.form == ElasticForm::YoungPoisson) {
-    const double nu = m_.property_value(b.modulus_b);
-    if (!(nu > -1.0 && nu < 0.5)) fail(where + ": Poisson's ratio " + detail::option_text(nu) + " is outside (-1, 0.5)");
+    if (const std::string why = property_range_violation(p.name, p.value); !why.empty())
+      fail("property '" + p.name + "': " + why);
   }
 }
 
@@ -152,7 +136,6 @@ void ModelCheck::blocks() {
     if (b.modulus_a == kNoProperty || b.modulus_b == kNoProperty || b.density == kNoProperty)
       fail(where + ": needs two elastic constants and a density");
     for (PropertyId id : {b.modulus_a, b.modulus_b, b.density, b.stiffness_scale, b.mass_scale}) property(id, where);
-    if (m_.property_value(b.density) < 0) fail(where + ": density is negative");
     for (const BlockRegion& r : b.regions) {
       unique_name(r.name, "region");
       if (r.elements.empty()) fail("region '" + r.name + "' of " + where + " has no elements");
@@ -163,7 +146,6 @@ void ModelCheck::blocks() {
       property(r.stiffness_scale, "region '" + r.name + "'");
       property(r.mass_scale, "region '" + r.name + "'");
     }
-    elastic_constants(b, where);
   }
 }
 
