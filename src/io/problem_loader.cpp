@@ -325,14 +325,7 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
       (this->*read)(*f);
     }
 
-  try {
-    model_.validate();
-  } catch (const std::invalid_argument& e) {
-    const Location at = location_of_model_error(e.what());
-    throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
-  }
-  check_reference_nodes_used();
-  check_free_dofs();
+  check_model();
   if (const Field* f = top.find("sensors") ? top.find("sensors") : top.find("measured")) {
     enter(*f);
     check_sensors_move(*f);
@@ -342,6 +335,18 @@ void Loader::load(const YAML::Node& root, const std::vector<std::pair<YAML::Node
     enter(*f);
     read_effects(*f);
   }
+}
+
+// The finished model, its errors placed at the line of what they name.
+void Loader::check_model() {
+  try {
+    model_.validate();
+  } catch (const std::invalid_argument& e) {
+    const Location at = location_of_model_error(e.what());
+    throw ProblemError(at.file.empty() ? path_ : at.file, at.line, e.what());
+  }
+  check_reference_nodes_used();
+  check_free_dofs();
 }
 
 int Loader::block_index(const Field& f) const {

@@ -131,6 +131,7 @@ class Loader {
   void read_mesh(const Field& f);
   void read_box_mesh(const Fields& fs);
   void read_mesh_file(const Fields& fs);
+  void check_model();
   void check_free_dofs();
   void check_reference_nodes_used() const;
   void check_sensors_move(const Field& f) const;
