@@ -172,6 +172,25 @@ TEST(ModalSolver, NegativeStiffnessIsReportedAsIndefinite) {
   }
 }
 
+TEST(ModalSolver, APenaltyStiffJointIsNotTakenForASingularK) {
+  // One joint 1e8 and 1e9 times stiffer than the rest, a common way to model a rigid connection:
+  // the trace of K is then the joint's, and a threshold from tr(K)/tr(M) took the lowest elastic
+  // modes for rigid-body ones ("K is singular"). The two stiffnesses give one limit, to the
+  // penalty's first-order error lambda / k.
+  for (int n : {30, 500}) {  // dense and sparse paths
+    std::vector<Vector> lowest;
+    for (const double penalty : {1e10, 1e11}) {
+      Model model = MakeChain(n, 1.0, 100.0, true);
+      model.properties[model.find_property("joint3.kx")].value = penalty;
+      const Solved s = SolveModel(model, 3, 0);
+      ASSERT_EQ(s.result.status, EigenStatus::Successful) << "n = " << n << ", penalty " << penalty << ": "
+                                                          << s.result.message;
+      lowest.push_back(s.result.eigenvalues.head(3));
+    }
+    EXPECT_LT((lowest[0].array() / lowest[1].array() - 1).abs().maxCoeff(), 1e-6) << "n = " << n;
+  }
+}
+
 TEST(ModalSolver, InvalidOptionsNameTheField) {
   ModalOptions options;
   options.tolerance = -1;

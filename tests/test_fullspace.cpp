@@ -182,7 +182,10 @@ TEST(FullSpace, UnguardedNewtonFindsWrongModesWhichTheFinalCheckCatchesAndTheSaf
   if (right_modes) {
     EXPECT_TRUE(naive_run.mode_check.passed) << naive_run.FullReport();
   } else {
-    EXPECT_EQ(naive_run.status, FullSpaceStatus::WrongModes) << naive_run.FullReport();
+    // Off the right modes the run either stops there (WrongModes) or wanders on to its iteration
+    // limit, which of the two again depends on rounding; neither may be called converged.
+    EXPECT_TRUE(naive_run.status == FullSpaceStatus::WrongModes || naive_run.status == FullSpaceStatus::MaxIterations)
+        << naive_run.FullReport();
     EXPECT_FALSE(naive_run.converged());
     EXPECT_FALSE(naive_run.mode_check.passed);
     EXPECT_NE(naive_run.mode_check.reason.find("measured mode"), std::string::npos) << naive_run.mode_check.reason;

@@ -53,7 +53,7 @@ struct MODALCAL_EXPORT ModalOptions {
   /// - \f$\|K u - \lambda M u\|_2 \le \text{tolerance}\,|\lambda|\,\|M u\|_2 +
   ///   \epsilon \|K\|_1 \|u\|_2\f$, the last term (\f$\epsilon = 2.2\cdot 10^{-16}\f$) being the
   ///   rounding error of computing K u; for a rigid-body mode
-  ///   (\f$|\lambda| \le\f$ rigid_tolerance tr(K)/tr(M)),
+  ///   (\f$|\lambda| \le\f$ rigid_tolerance s, s below),
   ///   \f$\|K u - \lambda M u\|_2 \le \text{tolerance}\,\|K\|_1 \|u\|_2\f$.
   ///
   /// The Spectra fallback applies the first test only. ModalResult::residuals reports the
@@ -73,11 +73,14 @@ struct MODALCAL_EXPORT ModalOptions {
   /// needs more columns to converge; the measurements behind the default are in docs/design.md,
   /// "Forward modal solve". Range: 0..64.
   int block_size = 0;
-  /// Initial shift sigma (must be < 0), or 0 to choose one from trace(K)/trace(M). After each
-  /// successful solve the solver moves the shift to -0.3 times the lowest elastic eigenvalue.
+  /// Initial shift sigma (must be < 0), or 0 to choose one from the stiffness-to-mass scale s
+  /// (below). After each successful solve the solver moves the shift to -0.3 times the lowest
+  /// elastic eigenvalue.
   double initial_shift = 0.0;
-  /// A mode is rigid if \f$\lambda < \text{rigid\_tolerance}\cdot \mathrm{tr}(K)/\mathrm{tr}(M)\f$.
-  /// Range: (0, 1e-3].
+  /// A mode is rigid if \f$\lambda < \text{rigid\_tolerance}\cdot s\f$, with the scale
+  /// \f$s = \min(\mathrm{tr}(K)/\mathrm{tr}(M),\ \mathrm{median}_i K_{ii}/M_{ii})\f$ over the DOFs
+  /// with mass: the median keeps a few penalty-stiff joints from raising the threshold above the
+  /// lowest elastic modes. Range: (0, 1e-3].
   double rigid_tolerance = 1e-9;
   /// Returns false and explains which field violates which condition.
   bool IsValid(std::string* error) const;

@@ -19,6 +19,23 @@ namespace modalcal {
 
 namespace {
 
+/// The stiffness-to-mass scale that places the first shift and the rigid-body threshold:
+/// tr(K)/tr(M), or the median of K_ii/M_ii over the DOFs with mass when that is lower. A few
+/// penalty-stiff joints or springs (1e14 against a structure's 1e8) dominate the trace, which
+/// then put real elastic modes below the rigid-body threshold ("K is singular"); the median
+/// does not see them, and on an ordinary mesh it is close to the trace ratio.
+double stiffness_mass_scale(const SparseMatrix& K, const SparseMatrix& M, double trace_ratio) {
+  const Vector k = K.diagonal(), m = M.diagonal();
+  std::vector<double> ratios;
+  ratios.reserve(static_cast<size_t>(k.size()));
+  for (Eigen::Index i = 0; i < k.size(); ++i)
+    if (m[i] > 0 && k[i] > 0) ratios.push_back(k[i] / m[i]);
+  if (ratios.empty()) return trace_ratio;
+  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
+  std::nth_element(ratios.begin(), middle, ratios.end());
+  return std::min(trace_ratio, *middle);
+}
+
 constexpr double kTwoPi = 6.283185307179586;
 // Below this size a dense solve is both simpler and faster than Lanczos, and Lanczos needs
 // nev < ncv <= n anyway.
@@ -363,9 +380,11 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
                            "parameter values for zeros, negatives or NaN";
     return result;
   }
-  // Without a previous solve, -1e-6 tr(K)/tr(M) lies near or below the lowest elastic eigenvalue
-  // of practical meshes while keeping K - sigma M well conditioned for rigid-body modes.
-  const double sigma = shift_ < 0 ? shift_ : -1e-6 * trace_ratio;
+  // Without a previous solve, -1e-6 times the stiffness-to-mass scale lies near or below the
+  // lowest elastic eigenvalue of practical meshes while keeping K - sigma M well conditioned for
+  // rigid-body modes.
+  const double scale = stiffness_mass_scale(K, M, trace_ratio);
+  const double sigma = shift_ < 0 ? shift_ : -1e-6 * scale;
   result.shift = sigma;
   const int wanted = options_.num_modes + options_.max_rigid_modes;
   // The dense path finds every mode; Lanczos at most n - 1 (Spectra's nev <= n - 1).
@@ -376,7 +395,7 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
                      (n > kDenseLimit ? " (Lanczos finds at most " + std::to_string(n - 1) + " of them)" : "");
     return result;
   }
-  const double rigid_threshold = options_.rigid_tolerance * trace_ratio;
+  const double rigid_threshold = options_.rigid_tolerance * scale;
   Eigenpairs pairs;
   // The dense path also factorizes K - sigma M with CHOLMOD: adjoint and sensitivity solves
   // (solve_factorized) use that factorization whichever path found the modes.
