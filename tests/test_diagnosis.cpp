@@ -531,6 +531,36 @@ TEST(EffectRanking, TheBestRefitsNeighboursAreRefittedTooAndTheBestOfThemLeads) 
   EXPECT_NE(error.find("neighbour_refits"), std::string::npos) << error;
 }
 
+TEST(EffectRanking, TheNeighbourRefitsWalkOnToWhereTheDataFitBest) {
+  // A 0.3 mass at [1.5, 0, 0] on a structure of 4.5: so large that the first-order prediction
+  // puts the best-predicted mass a neighbourhood away, and the first round of its neighbours
+  // does not reach the truth. Later rounds start from the best refit of the round before.
+  const Problem problem = noise_weighted(WithHiddenEffect({"point_mass@[1.5,0,0]:mass=0.3"}, 4),
+                                         MeasurementNoise{0.002, 0.02, 4});
+  std::vector<EffectCandidate> masses;
+  for (const EffectCandidate& c : generate_candidates(problem))
+    if (c.change.kind == ModelChange::Kind::AddPointMass && c.change.property == "mass") masses.push_back(c);
+  auto best_after = [&](int rounds) {
+    RankingOptions options;
+    options.refits = 1;
+    options.place_refits = 0;
+    options.neighbour_refits = 2;
+    options.neighbour_rounds = rounds;
+    return rank_effects(problem, problem.truth_values(), masses, options).effects.front();
+  };
+  const RankedEffect one_round = best_after(1), three_rounds = best_after(3);
+  ASSERT_TRUE(three_rounds.acceptable()) << three_rounds.summary();
+  ASSERT_TRUE(three_rounds.candidate.location);
+  EXPECT_LT((*three_rounds.candidate.location - Vec3(1.5, 0, 0)).norm(), 1e-9) << three_rounds.summary();
+  EXPECT_FALSE(three_rounds.model_form_error_after) << three_rounds.summary();
+  EXPECT_GT(one_round.chi2_after, three_rounds.chi2_after + 100) << one_round.summary();
+  RankingOptions bad;
+  bad.neighbour_rounds = -1;
+  std::string error;
+  EXPECT_FALSE(bad.IsValid(&error));
+  EXPECT_NE(error.find("neighbour_rounds"), std::string::npos) << error;
+}
+
 TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   // The truth's Poisson's ratio (0.02) lies below the candidate's range (nu0 - 0.2 = 0.1): the
   // refit stops on the bound, significant but standing in for a change it cannot make.
@@ -1247,4 +1277,5 @@ springs:
 }
 
 }  // namespace
+
 }  // namespace modalcal

@@ -209,11 +209,17 @@ struct MODALCAL_EXPORT RankingOptions {
   /// Range: (0, 1].
   double place_refit_share = 0.7;
   /// Refits of the best refit's neighbours (its kind, within its neighbourhood), best predicted
-  /// first, after the refits above. The choice above refits one candidate per neighbourhood, and
-  /// for a large effect the first-order prediction does not rank the nodes of one neighbourhood
-  /// reliably: a point mass refitted one node from the truth's leaves a residual that later
-  /// steps fill with spurious effects. Range: >= 0.
+  /// first, after the refits above; as many again for each other kind's best refit that scores
+  /// within the critical value of it. The choice above refits one candidate per neighbourhood,
+  /// and for a large effect the first-order prediction does not rank the nodes of one
+  /// neighbourhood reliably: a point mass refitted one node from the truth's leaves a residual
+  /// that later steps fill with spurious effects. Range: >= 0.
   int neighbour_refits = 3;
+  /// Rounds of neighbour refits. The first refits the best refit's neighbours and those of every
+  /// kind's best scoring within the critical value of it; each further round refits the
+  /// neighbours of a kind's best that moved in the round before, so that it can walk on to the
+  /// place the data favour. 1: the first round only; 0: no neighbour refits. Range: >= 0.
+  int neighbour_rounds = 3;
   /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
   /// by ΔX² alone (every candidate equally likely a priori).
   bool equal_kind_prior = true;

@@ -31,6 +31,7 @@ struct DiagnoseArgs {
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
+  int neighbour_rounds = RankingOptions().neighbour_rounds;
   double significance = ResidualTestOptions().significance;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
@@ -402,6 +403,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.refits = args.refits;
   options.ranking.place_refits = args.place_refits;
   options.ranking.neighbour_refits = args.neighbour_refits;
+  options.ranking.neighbour_rounds = args.neighbour_rounds;
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
   options.max_steps = args.max_steps;
@@ -532,7 +534,10 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(non_negative_number());
   cmd->add_option("--neighbour-refits", args->neighbour_refits,
                   "then refit this many of the best refit's neighbours, the same effect a node or two away "
-                  "(default 3)")
+                  "(default 3), and as many of each kind's best that scores close to it")
+      ->check(non_negative_number());
+  cmd->add_option("--neighbour-rounds", args->neighbour_rounds,
+                  "repeat the neighbour refits from a best that moved, at most this many rounds (default 3)")
       ->check(non_negative_number());
   cmd->add_option("--significance", args->significance,
                   "level of the residual and likelihood-ratio tests (default 0.01)")

@@ -389,26 +389,77 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
   }
 }
 
-/// The screened candidates to refit after the first refits: up to RankingOptions::neighbour_refits
-/// neighbours of the best-scoring acceptable refit, not refitted yet, best predicted first.
-std::vector<size_t> neighbour_choices(const std::vector<RankedEffect>& screened, int neighbour_refits) {
-  const RankedEffect* best = nullptr;
-  for (const RankedEffect& r : screened)
-    if (r.acceptable() && (!best || r.score() > best->score())) best = &r;
-  std::vector<size_t> chosen;
-  for (size_t k = 0; best && k < screened.size() && static_cast<int>(chosen.size()) < neighbour_refits; ++k)
-    if (!screened[k].refitted && best->candidate.neighbour_of(screened[k].candidate)) chosen.push_back(k);
-  return chosen;
+/// Whether `a` and `b` are candidates of one kind in the sense of EffectCandidate::neighbour_of:
+/// the same change to the same property.
+bool same_change(const EffectCandidate& a, const EffectCandidate& b) {
+  return a.change.kind == b.change.kind && a.change.property == b.change.property;
 }
 
-/// Refits of the best predictions (refit_choices, add_place_refits), then of the best refit's
-/// neighbours (neighbour_choices), each judged by its likelihood-ratio test.
+/// Where the neighbour refits start: the best-scoring acceptable refit of each kind with
+/// neighbours (a place), while its score lies within the critical value of the best one's: of
+/// kinds that close, the data hardly tell which, and the first refits' places are only
+/// first-order guesses. Those in `climbed` are left out.
+std::vector<size_t> climb_starts(const std::vector<RankedEffect>& screened, double critical_value,
+                                 const std::vector<size_t>& climbed) {
+  std::vector<size_t> best_of_kind;  // the best acceptable refit of each kind, by score
+  for (size_t k = 0; k < screened.size(); ++k) {
+    if (!screened[k].acceptable() || !screened[k].candidate.location) continue;
+    auto same = std::find_if(best_of_kind.begin(), best_of_kind.end(),
+                             [&](size_t b) { return same_change(screened[b].candidate, screened[k].candidate); });
+    if (same == best_of_kind.end())
+      best_of_kind.push_back(k);
+    else if (screened[k].score() > screened[*same].score())
+      *same = k;
+  }
+  double best = -INFINITY;
+  for (const RankedEffect& r : screened)
+    if (r.acceptable()) best = std::max(best, r.score());
+  std::vector<size_t> starts;
+  for (size_t b : best_of_kind)
+    if (screened[b].score() >= best - critical_value && std::find(climbed.begin(), climbed.end(), b) == climbed.end())
+      starts.push_back(b);
+  return starts;
+}
+
+/// Up to `neighbour_refits` neighbours of `start` not refitted yet and not in `chosen`, best
+/// predicted first, appended to `chosen`.
+void add_neighbours(const std::vector<RankedEffect>& screened, size_t start, int neighbour_refits,
+                    std::vector<size_t>* chosen) {
+  int added = 0;
+  for (size_t k = 0; k < screened.size() && added < neighbour_refits; ++k)
+    if (!screened[k].refitted && screened[start].candidate.neighbour_of(screened[k].candidate) &&
+        std::find(chosen->begin(), chosen->end(), k) == chosen->end()) {
+      chosen->push_back(k);
+      ++added;
+    }
+}
+
+/// The neighbour refits (RankingOptions::neighbour_refits, neighbour_rounds): rounds of refits of
+/// the neighbours of each kind's best refit (climb_starts), until no kind's best moves. For a large
+/// effect the first-order prediction does not rank the places of one kind reliably, so each
+/// round lets a kind's best walk one neighbourhood on towards where the refits fit best.
+void climb_neighbours(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
+                      std::vector<RankedEffect>* screened) {
+  std::vector<size_t> climbed;
+  for (int round = 0; round < options.neighbour_rounds; ++round) {
+    std::vector<size_t> chosen;
+    for (size_t start : climb_starts(*screened, ranking.critical_value, climbed)) {
+      add_neighbours(*screened, start, options.neighbour_refits, &chosen);
+      climbed.push_back(start);
+    }
+    if (chosen.empty()) return;
+    refit_chosen(problem, options, ranking, chosen, screened);
+  }
+}
+
+/// Refits of the best predictions (refit_choices, add_place_refits), then of the best refits'
+/// neighbours (climb_neighbours), each judged by its likelihood-ratio test.
 void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
                 std::vector<RankedEffect>* screened) {
   std::vector<size_t> choices = refit_choices(*screened, options.refits);
   add_place_refits(problem.model, *screened, options, &choices);
   refit_chosen(problem, options, ranking, choices, screened);
-  refit_chosen(problem, options, ranking, neighbour_choices(*screened, options.neighbour_refits), screened);
+  climb_neighbours(problem, options, ranking, screened);
 }
 /// The standard error of the effect's value in `best`'s refit: the covariance of a noise-weighted
 /// least-squares estimate, (J^T J)^-1; NaN when its Jacobian cannot be had or is singular.
@@ -462,6 +513,7 @@ bool RankingOptions::IsValid(std::string* error) const {
   if (refits < 0) return bad("refits = " + detail::option_text(refits) + ": must be >= 0");
   if (place_refits < 0) return bad("place_refits = " + detail::option_text(place_refits) + ": must be >= 0");
   if (neighbour_refits < 0) return bad("neighbour_refits = " + detail::option_text(neighbour_refits) + ": must be >= 0");
+  if (neighbour_rounds < 0) return bad("neighbour_rounds = " + detail::option_text(neighbour_rounds) + ": must be >= 0");
   if (!(place_refit_share > 0 && place_refit_share <= 1))
     return bad("place_refit_share = " + detail::option_text(place_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
