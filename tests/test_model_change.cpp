@@ -3,12 +3,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "modalcal/assembly.hpp"
 #include "modalcal/eigen.hpp"
 #include "modalcal/model_change.hpp"
 #include "modalcal/problem.hpp"
 #include "modalcal/problem_file.hpp"
+#include "modalcal/test_data.hpp"
+#include "io/uff_records.hpp"
+#include "support/text_util.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -116,6 +121,47 @@ TEST(ModelChange, MalformedStringsSayWhatIsExpected) {
   ExpectParseError("point_mass@[1,2]:mass=1", "three numbers");
   ExpectParseError("point_mass@#x:mass=1", "node id");
   ExpectParseError("", "empty");
+}
+
+TEST(NumberReading, OneGrammarForEveryReaderOfNumbers) {
+  using detail::NumberRead;
+  auto read = [](const std::string& text) {
+    double v = -1;
+    const NumberRead r = detail::read_number(text, &v);
+    return std::make_pair(r, v);
+  };
+  EXPECT_EQ(read("2.5e3"), std::make_pair(NumberRead::kOk, 2500.0));
+  EXPECT_EQ(read("+7"), std::make_pair(NumberRead::kOk, 7.0));
+  EXPECT_EQ(read("-.5"), std::make_pair(NumberRead::kOk, -0.5));
+  // An underflow is the tiny (or zero) number it is; an overflow is too large.
+  EXPECT_EQ(read("1e-320").first, NumberRead::kOk);
+  EXPECT_GT(read("1e-320").second, 0);
+  EXPECT_LT(read("1e-320").second, 1e-300);
+  EXPECT_EQ(read("-1e-999"), std::make_pair(NumberRead::kOk, -0.0));
+  EXPECT_EQ(read("1e400").first, NumberRead::kTooLarge);
+  EXPECT_EQ(read("+1e400").first, NumberRead::kTooLarge);
+  EXPECT_EQ(read("nan").first, NumberRead::kNotFinite);
+  EXPECT_EQ(read("-inf").first, NumberRead::kNotFinite);
+  for (const char* bad : {"", "+", "-", "++1", "+-1", " 1", "1 ", "1x", "0x10", "1e", "1,5", "1e400x"})
+    EXPECT_EQ(read(bad).first, NumberRead::kNotANumber) << "'" << bad << "'";
+
+  // The readers agree: a change's value, a CSV row's and a UFF record's.
+  EXPECT_EQ(parse_model_change("j.krx=+5").value, 5.0);
+  EXPECT_GT(parse_model_change("j.krx=1e-320").value, 0);
+  EXPECT_THROW(parse_model_change("j.krx=1e400"), std::invalid_argument);
+  const TestData csv = read_test_data(
+      WriteTempFile("numbers.csv", "mode,frequency_hz,node,direction,value\n1,+12.5,3,z,1e-320\n1,12.5,4,z,-1\n"));
+  EXPECT_EQ(csv.modes.at(0).frequency_hz, 12.5);
+  EXPECT_GT(*csv.modes.at(0).value(3, 2), 0);
+  std::vector<double> numbers;
+  std::string bad;
+  ASSERT_TRUE(detail::parse_numbers("  1.0D+00-2.5E-320+3", &numbers, &bad)) << bad;
+  ASSERT_EQ(numbers.size(), 3u);
+  EXPECT_EQ(numbers[0], 1.0);
+  EXPECT_LT(numbers[1], 0);
+  EXPECT_EQ(numbers[2], 3.0);
+  EXPECT_FALSE(detail::parse_numbers("1.0 1e400", &numbers, &bad));
+  EXPECT_EQ(bad, "1e400");
 }
 
 TEST(ModelChange, SettingAnExistingPropertyRecordsBothValues) {

@@ -1,7 +1,6 @@
 #include "cli/cli_common.hpp"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -12,6 +11,7 @@
 #include "modalcal/model_change.hpp"
 #include "modalcal/output.hpp"
 #include "modalcal/synthesis.hpp"
+#include "support/text_util.hpp"
 
 namespace modalcal::cli {
 
@@ -60,14 +60,10 @@ Vector from_report(const Problem& problem, const std::string& path) {
 }  // namespace
 
 std::optional<double> finite_number(const std::string& text) {
-  // strtod, not stod: stod throws on an underflow (1e-320), which is the tiny number it is, as
-  // in problem files; an overflow (1e400) is no finite number.
-  if (text.empty()) return std::nullopt;
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(text.c_str(), &end);
-  if (end != text.c_str() + text.size() || !std::isfinite(v)) return std::nullopt;
-  if (errno == ERANGE && std::abs(v) >= 1) return std::nullopt;
+  // An underflow (1e-320) is the tiny number it is, as in problem files; an overflow (1e400) is
+  // no finite number.
+  double v = 0;
+  if (detail::read_number(text, &v) != detail::NumberRead::kOk) return std::nullopt;
   return v;
 }
 

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cerrno>
 #include <climits>
 #include <cmath>
 #include <cstdio>
@@ -194,12 +193,10 @@ double Loader::number(const Field& f) const {
 // such, and an underflow (1e-320) is the tiny value it is.
 double Loader::out_of_range_number(const Field& f) const {
   const std::string& text = f.node.Scalar();
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(text.c_str(), &end);
-  const bool whole = !text.empty() && end == text.c_str() + text.size();
-  if (whole && errno == ERANGE && std::abs(v) < 1) return v;
-  if (whole && errno == ERANGE)
+  double v = 0;
+  const detail::NumberRead read = detail::read_number(text, &v);
+  if (read == detail::NumberRead::kOk) return v;
+  if (read == detail::NumberRead::kTooLarge)
     fail(f, f.name() + " = " + excerpt(text, 60) + " lies beyond the range of a double (magnitudes up to about 1.8e308)");
   fail(f, "expected a number for " + f.name() + ", got " + describe(f.node));
 }

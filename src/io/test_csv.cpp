@@ -19,6 +19,8 @@ namespace {
 
 using detail::excerpt;
 using detail::trim;
+using detail::NumberRead;
+using detail::read_number;
 
 const char* const kHeader = "mode,frequency_hz,node,direction,value";
 const char* const kDirections[] = {"x", "y", "z", "rx", "ry", "rz"};
@@ -39,11 +41,7 @@ std::vector<std::string> split(const std::string& line) {
   }
 }
 
-bool parse_double(const std::string& text, double* v) {
-  const char* begin = text.data() + (!text.empty() && text[0] == '+' ? 1 : 0);
-  const auto [ptr, ec] = std::from_chars(begin, text.data() + text.size(), *v);
-  return ec == std::errc() && ptr == text.data() + text.size() && std::isfinite(*v);
-}
+bool parse_double(const std::string& text, double* v) { return read_number(text, v) == NumberRead::kOk; }
 
 bool parse_long(const std::string& text, long* v) {
   const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), *v);

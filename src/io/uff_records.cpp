@@ -33,13 +33,13 @@ bool parse_numbers(const std::string& line, std::vector<double>* numbers, std::s
     while (i < s.size() && is_blank(s[i])) ++i;
     if (i >= s.size()) return true;
     const size_t start = i;
-    if (s[i] == '+') ++i;  // from_chars takes no leading '+'
     double v = 0;
-    const auto [ptr, ec] = std::from_chars(s.data() + i, s.data() + s.size(), v);
-    const size_t stop = static_cast<size_t>(ptr - s.data());
+    size_t length = 0;
+    const NumberRead read = read_leading_number(std::string_view(s).substr(i), &v, &length);
+    const size_t stop = i + length;
     // A field ends at a blank, the line's end, or the sign of a touching next field.
     const bool ends_well = stop >= s.size() || is_blank(s[stop]) || s[stop] == '+' || s[stop] == '-';
-    if (ec != std::errc() || !std::isfinite(v) || !ends_well) {
+    if (read != NumberRead::kOk || !ends_well) {
       const size_t end = line.find_first_of(" \t\r", start);
       *bad = line_excerpt(line.substr(start, end == std::string::npos ? std::string::npos : end - start));
       return false;

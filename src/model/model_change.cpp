@@ -46,8 +46,7 @@ std::string trim(const std::string& s) {
 double parse_number(const std::string& text, const std::string& token, const std::string& what) {
   const std::string t = trim(token);
   double v = 0;
-  const auto [end, error] = std::from_chars(t.data(), t.data() + t.size(), v);
-  if (t.empty() || error != std::errc() || end != t.data() + t.size() || !std::isfinite(v))
+  if (detail::read_number(t, &v) != detail::NumberRead::kOk)
     fail(text, "expected a finite number for " + what + ", got '" + t + "'");
   return v;
 }
