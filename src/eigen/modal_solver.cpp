@@ -37,6 +37,10 @@ double stiffness_mass_scale(const SparseMatrix& K, const SparseMatrix& M, double
 }
 
 constexpr double kTwoPi = 6.283185307179586;
+// A largest diagonal entry of K this many times the median one comes from a penalty stiffness:
+// the portal frame's spread is 5e6 with a joint of 1e16 against its 1e8, which still solves, and
+// 5e7 with 1e17, which does not.
+constexpr double kPenaltySpread = 1e6;
 // Below this size a dense solve is both simpler and faster than Lanczos, and Lanczos needs
 // nev < ncv <= n anyway.
 constexpr int kDenseLimit = 300;
@@ -211,18 +215,43 @@ bool sparse_eigenpairs(detail::CholmodFactor& factor, const SparseMatrix& K, con
   return spectra_eigenpairs(factor, M, sigma, wanted, options, result, pairs);
 }
 
+/// max K_ii / median K_ii over the DOFs with stiffness: how far the stiffest DOF (a penalty
+/// joint or spring) stands above the structure's typical one.
+double stiffness_spread(const SparseMatrix& K) {
+  std::vector<double> k;
+  for (Eigen::Index i = 0; i < K.rows(); ++i)
+    if (K.coeff(i, i) > 0) k.push_back(K.coeff(i, i));
+  if (k.empty()) return 1;
+  const double largest = *std::max_element(k.begin(), k.end());
+  const auto middle = k.begin() + static_cast<std::ptrdiff_t>(k.size() / 2);
+  std::nth_element(k.begin(), middle, k.end());
+  return largest / *middle;
+}
+
 // A solved mode's relative residual is near the rounding floor (1e-12 or below); one above 1e-3
-// (or 100 times a loose ModalOptions::tolerance) is no eigenpair at all. That happens when M has fewer nonzero eigenvalues than modes were
-// asked for (a block of density 0 carrying a point mass): the solve then returns vectors in M's
-// null space, and reporting them as modes would pass garbage on as frequencies.
-bool residuals_plausible(const ModalOptions& options, ModalResult* result) {
+// (or 100 times a loose ModalOptions::tolerance) is no eigenpair at all. Two causes: M has fewer
+// nonzero eigenvalues than modes were asked for (a block of density 0 carrying a point mass: the
+// solve then returns vectors in M's null space), or a joint or spring so much stiffer than the
+// structure that the factorization of K - sigma M keeps too few digits of the structure (a
+// penalty for a rigid connection, 1e17 on the portal frame's 1e8). Reporting such vectors as
+// modes would pass garbage on as frequencies.
+bool residuals_plausible(const SparseMatrix& K, const ModalOptions& options, ModalResult* result) {
   const double most = std::max(1e-3, 100 * options.tolerance);
   for (Eigen::Index k = 0; k < result->residuals.size(); ++k) {
     if (result->residuals[k] <= most) continue;
     std::ostringstream s;
     s << "elastic mode " << k + 1 << " is no eigenpair (its relative residual is above " << most
-      << " or not a number): the mass matrix has fewer nonzero eigenvalues than modes were asked for. Likely "
-         "causes: a block with density 0, or fewer mass-carrying degrees of freedom than options.num_modes.";
+      << " or not a number): ";
+    const double spread = stiffness_spread(K);
+    if (spread > kPenaltySpread)
+      s << "K's largest diagonal entry is " << detail::number_text(spread, 2)
+        << " times its median one. Likely causes: a joint or spring stiffness used as a penalty for a rigid "
+           "connection, too stiff for the factorization to keep the structure's digits (a rigid coupling models "
+           "one exactly); or fewer mass-carrying degrees "
+           "of freedom than options.num_modes (a block with density 0).";
+    else
+      s << "the mass matrix has fewer nonzero eigenvalues than modes were asked for. Likely causes: a block with "
+           "density 0, or fewer mass-carrying degrees of freedom than options.num_modes.";
     result->status = EigenStatus::NumericalIssue;
     result->message = s.str();
     return false;
@@ -290,7 +319,7 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     result->message = "found only " + std::to_string(ne) + " elastic modes of " + std::to_string(options.num_modes);
     return false;
   }
-  return residuals_plausible(options, result);
+  return residuals_plausible(K, options, result);
 }
 
 }  // namespace
