@@ -19,6 +19,13 @@ namespace modalcal {
 
 namespace {
 
+/// The median of `values` (not empty), which it reorders.
+double median_of(std::vector<double>* values) {
+  const auto middle = values->begin() + static_cast<std::ptrdiff_t>(values->size() / 2);
+  std::nth_element(values->begin(), middle, values->end());
+  return *middle;
+}
+
 /// The stiffness-to-mass scale that places the first shift and the rigid-body threshold:
 /// tr(K)/tr(M), or the median of K_ii/M_ii over the DOFs with mass when that is lower. A few
 /// penalty-stiff joints or springs (1e14 against a structure's 1e8) dominate the trace, which
@@ -31,9 +38,7 @@ double stiffness_mass_scale(const SparseMatrix& K, const SparseMatrix& M, double
   for (Eigen::Index i = 0; i < k.size(); ++i)
     if (m[i] > 0 && k[i] > 0) ratios.push_back(k[i] / m[i]);
   if (ratios.empty()) return trace_ratio;
-  const auto middle = ratios.begin() + static_cast<std::ptrdiff_t>(ratios.size() / 2);
-  std::nth_element(ratios.begin(), middle, ratios.end());
-  return std::min(trace_ratio, *middle);
+  return std::min(trace_ratio, median_of(&ratios));
 }
 
 constexpr double kTwoPi = 6.283185307179586;
@@ -218,14 +223,13 @@ bool sparse_eigenpairs(detail::CholmodFactor& factor, const SparseMatrix& K, con
 /// max K_ii / median K_ii over the DOFs with stiffness: how far the stiffest DOF (a penalty
 /// joint or spring) stands above the structure's typical one.
 double stiffness_spread(const SparseMatrix& K) {
+  const Vector diagonal = K.diagonal();
   std::vector<double> k;
-  for (Eigen::Index i = 0; i < K.rows(); ++i)
-    if (K.coeff(i, i) > 0) k.push_back(K.coeff(i, i));
+  for (const double kii : diagonal)
+    if (kii > 0) k.push_back(kii);
   if (k.empty()) return 1;
   const double largest = *std::max_element(k.begin(), k.end());
-  const auto middle = k.begin() + static_cast<std::ptrdiff_t>(k.size() / 2);
-  std::nth_element(k.begin(), middle, k.end());
-  return largest / *middle;
+  return largest / median_of(&k);
 }
 
 // A solved mode's relative residual is near the rounding floor (1e-12 or below); one above 1e-3
