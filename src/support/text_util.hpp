@@ -1,6 +1,5 @@
 #pragma once
 // Internal: small text helpers for messages and the test-data readers and writers.
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -70,7 +69,6 @@ inline NumberRead read_leading_number(std::string_view text, double* v, size_t* 
     // from_chars leaves the value alone on a range error; strtod tells an underflow (its value
     // stands) from an overflow (HUGE_VAL).
     const std::string copy(text.substr(sign, *length - sign));
-    errno = 0;
     *v = std::strtod(copy.c_str(), nullptr);
     if (std::abs(*v) >= 1) return NumberRead::kTooLarge;
     return NumberRead::kOk;
