@@ -698,6 +698,12 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
   EXPECT_NEAR(d.final_parameters[with.find_parameter("top.mass_scale")], 1.1, 0.02) << report;
   for (const char* part : {"step 1", "step 2", "+ j.krx", "+ top.mass_scale", "then"})
     EXPECT_NE(report.find(part), std::string::npos) << part << "\n" << report;
+  // The exchange pass screened the model without each effect in turn, and kept both. Without the
+  // second, that is the model the second step screened, at the same fit: that screen was taken
+  // again, not run anew.
+  EXPECT_TRUE(d.exchanges.empty()) << report;
+  EXPECT_GE(d.screens_reused, 1) << report;
+  EXPECT_GE(d.screens, static_cast<int>(d.rankings.size())) << report;
 }
 
 TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {

@@ -273,6 +273,10 @@ struct MODALCAL_EXPORT Diagnosis {
   /// The paths walked when the first step's alternatives were tried, the first ranking's best
   /// effect's first; empty when only that one was.
   std::vector<DiagnosisPath> paths;
+  /// The screens (rank_effects()) the loop ran over every path, steps and exchanges, and how many
+  /// times it took an earlier screen of the same model at the same fit instead of screening again.
+  int screens = 0;
+  int screens_reused = 0;
   /// The effects kept by the backward pass: started_with's, then the accepted ones.
   std::vector<EffectCandidate> effects;
   /// The final parameters: the problem's, then one value per entry of `effects`.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <stdexcept>
 #include <utility>
 
@@ -269,6 +270,44 @@ void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
   }
 }
 
+/// The screens one diagnosis ran, by the state they screened. An exchange screens the model without
+/// one effect, and without the last one taken that is the model the step before screened; another
+/// path's exchange often screens a model this path's steps did. A state with the same effects in the
+/// same order at the same fit (chi-square within 1e-3 relative, as joins() judges paths) gets that
+/// screen again: the refits would start from where the earlier ones ended and reach their optimum.
+class ScreenMemo {
+ public:
+  /// The ranking of the candidates in `state`'s model, screened now or taken from an earlier screen.
+  const EffectRanking& rank(const LoopState& state, const DiagnosisOptions& options) {
+    for (const Entry& e : entries_)
+      if (e.names == names_of(state.effects) &&
+          std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
+        ++reused_;
+        return e.ranking;
+      }
+    entries_.push_back({names_of(state.effects), state.fit.statistic,
+                        rank_effects(state.problem, state.parameters,
+                                     generate_candidates(state.problem, options.candidates), options.ranking)});
+    return entries_.back().ranking;
+  }
+  int screened() const { return static_cast<int>(entries_.size()); }
+  int reused() const { return reused_; }
+
+ private:
+  struct Entry {
+    std::vector<std::string> names;  ///< the state's effects, in order (the parameters' layout)
+    double chi2;
+    EffectRanking ranking;
+  };
+  static std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
+    std::vector<std::string> names;
+    for (const EffectCandidate& c : effects) names.push_back(c.name);
+    return names;
+  }
+  std::deque<Entry> entries_;  // a deque, so that the references rank() returns stay valid
+  int reused_ = 0;
+};
+
 /// Accepts the effect `index` of d's last ranking (an acceptable refit) as the next step.
 void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& options, LoopState* state,
                    Diagnosis* d) {
@@ -283,10 +322,9 @@ void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& 
 /// One forward step: screens the candidates of the model as it now is and accepts the best
 /// refit when it is significant. Returns false when nothing was accepted.
 bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
-                  Diagnosis* d) {
-  const std::vector<EffectCandidate> candidates = generate_candidates(state->problem, options.candidates);
-  if (d->rankings.empty()) d->candidates = candidates;
-  d->rankings.push_back(rank_effects(state->problem, state->parameters, candidates, options.ranking));
+                  ScreenMemo* memo, Diagnosis* d) {
+  if (d->rankings.empty()) d->candidates = generate_candidates(state->problem, options.candidates);
+  d->rankings.push_back(memo->rank(*state, options));
   const EffectRanking& ranking = d->rankings.back();
   if (!may_accept || !acceptable(ranking)) return false;
   accept_effect(fitted, 0, options, state, d);
@@ -405,7 +443,8 @@ const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name
 /// significant refit there replaces it when its score S beats what the accepted effect scores
 /// there (its own likelihood-ratio statistic less its kind's penalty), or whenever it has gone to a
 /// bound of its range.
-void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
+void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, ScreenMemo* memo,
+                   Diagnosis* d) {
   const size_t first = d->started_with.size();
   if (state->effects.size() < first + 2) return;
   const Eigen::Index np = static_cast<Eigen::Index>(fitted.parameters.size());
@@ -416,8 +455,7 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
                   : std::nullopt;
     if (!refitted) continue;
     const LoopState& without = *refitted;
-    const EffectRanking ranking = rank_effects(without.problem, without.parameters,
-                                               generate_candidates(without.problem, options.candidates), options.ranking);
+    const EffectRanking& ranking = memo->rank(without, options);
     const RankedEffect* best = acceptable(ranking);
     // One the later refits moved onto a bound stands in for something else: any acceptable
     // effect replaces it.
@@ -690,19 +728,19 @@ void end_at(const LoopState& state, Diagnosis* d) {
 /// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
 /// its first and fits no better than that path's first step, at no lower a score (its exchange
 /// could at best trade its effect for that one, where that path went on from).
-WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, Diagnosis* d,
-             const Diagnosis* earlier = nullptr) {
+WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, ScreenMemo* memo,
+             Diagnosis* d, const Diagnosis* earlier = nullptr) {
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
     if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
-    if (!forward_step(fitted, &state, options, k < options.max_steps, d)) break;
+    if (!forward_step(fitted, &state, options, k < options.max_steps, memo, d)) break;
   }
   if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
   end_at(state, d);
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
-  if (options.exchange) exchange_pass(fitted, &state, options, d);
+  if (options.exchange) exchange_pass(fitted, &state, options, memo, d);
   if (options.backward) backward_pass(fitted, &state, options, d);
   end_at(state, d);
   return WalkEnd::kEnd;
@@ -736,23 +774,11 @@ std::vector<size_t> other_first_steps(const EffectRanking& ranking, int count) {
   return chosen;
 }
 
-/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
-/// pass, with the first step's localization and map. When that path took two or more steps or
-/// ended with a residual larger than the noise, the loop is walked again from each of the first
-/// ranking's next-best effects (DiagnosisOptions::first_step_alternatives), and the path that ends
-/// with the lowest score (path_score) is kept: with several effects at once the best single
-/// effect may stand in for them together, and no later step or exchange then leaves it.
-void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
-  const Vector calibrated = d->calibration.final;
-  localize(problem, calibrated, options, d);
-  d->started_with = enabled_candidates(problem, options.candidates);
-  d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
-  const LoopState start = starting_state(fitted, d->started_with, calibrated, options);
-  if (!d->started_with.empty()) d->before = start.fit;
-  const Diagnosis before_the_loop = *d;
-  walk(fitted, start, 0, options, d);
-  d->ranking = d->rankings.front();
-  d->map = screen_map(problem.model, d->ranking);
+/// The paths from the first ranking's next-best effects (DiagnosisOptions::first_step_alternatives),
+/// after the greedy path `d` walked from `start`; `before_the_loop` is d as it was before. The path
+/// that ends with the lowest score (path_score) is kept.
+void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagnosis& before_the_loop,
+                      const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d) {
   if (d->steps.empty() || !d->final_fit.test || (d->steps.size() < 2 && consistent_with_noise(d->final_fit))) return;
   const std::vector<size_t> others = other_first_steps(d->ranking, options.first_step_alternatives);
   if (others.empty()) return;
@@ -764,7 +790,7 @@ void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOpti
     other.map = d->map;
     LoopState state = start;
     accept_effect(fitted, index, options, &state, &other);
-    const WalkEnd end = walk(fitted, state, 1, options, &other, d);
+    const WalkEnd end = walk(fitted, state, 1, options, memo, &other, d);
     if (end == WalkEnd::kJoined) {
       paths.push_back(path_of(*d));
       paths.back().joined = paths.back().first;
@@ -778,6 +804,28 @@ void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOpti
   }
   for (DiagnosisPath& path : paths) path.kept = path.first == d->steps.front().effect.candidate.name;
   d->paths = std::move(paths);
+}
+
+/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
+/// pass, with the first step's localization and map. When that path took two or more steps or
+/// ended with a residual larger than the noise, the loop is walked again from each of the first
+/// ranking's next-best effects (walk_other_paths): with several effects at once the best single
+/// effect may stand in for them together, and no later step or exchange then leaves it.
+void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  const Vector calibrated = d->calibration.final;
+  localize(problem, calibrated, options, d);
+  d->started_with = enabled_candidates(problem, options.candidates);
+  d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
+  const LoopState start = starting_state(fitted, d->started_with, calibrated, options);
+  if (!d->started_with.empty()) d->before = start.fit;
+  const Diagnosis before_the_loop = *d;
+  ScreenMemo memo;
+  walk(fitted, start, 0, options, &memo, d);
+  d->ranking = d->rankings.front();
+  d->map = screen_map(problem.model, d->ranking);
+  walk_other_paths(fitted, start, before_the_loop, options, &memo, d);
+  d->screens = memo.screened();
+  d->screens_reused = memo.reused();
 }
 
 /// -2 ln L at the end of d's loop on `data` (unweighted, with a stated noise), up to a constant
@@ -962,7 +1010,9 @@ std::string paths_text(const Diagnosis& d) {
     if (path.no_second_step) text += ", no second step: walked no further";
     text += "\n";
   }
-  return text;
+  std::snprintf(line, sizeof line, "  (%d screens of the candidates; %d more were a model screened before, at the same fit)\n",
+                d.screens, d.screens_reused);
+  return text + line;
 }
 
 std::string format_steps(const Problem& problem, const Diagnosis& d) {
