@@ -274,7 +274,7 @@ void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
 /// one effect, and without the last one taken that is the model the step before screened; another
 /// path's exchange often screens a model this path's steps did. A state with the same effects in the
 /// same order at the same fit (chi-square within 1e-3 relative, as joins() judges paths) gets that
-/// screen again: the refits would start from where the earlier ones ended and reach their optimum.
+/// screen again: a new screen there would repeat it to within the refits' tolerance.
 class ScreenMemo {
  public:
   /// The ranking of the candidates in `state`'s model, screened now or taken from an earlier screen.
