@@ -270,6 +270,13 @@ void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
   }
 }
 
+/// The names of `effects`, in order.
+std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
+  std::vector<std::string> names;
+  for (const EffectCandidate& c : effects) names.push_back(c.name);
+  return names;
+}
+
 /// The screens one diagnosis ran, by the state they screened. An exchange screens the model without
 /// one effect, and without the last one taken that is the model the step before screened; another
 /// path's exchange often screens a model this path's steps did. A state with the same effects in the
@@ -279,13 +286,14 @@ class ScreenMemo {
  public:
   /// The ranking of the candidates in `state`'s model, screened now or taken from an earlier screen.
   const EffectRanking& rank(const LoopState& state, const DiagnosisOptions& options) {
+    const std::vector<std::string> names = names_of(state.effects);
     for (const Entry& e : entries_)
-      if (e.names == names_of(state.effects) &&
+      if (e.names == names &&
           std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
         ++reused_;
         return e.ranking;
       }
-    entries_.push_back({names_of(state.effects), state.fit.statistic,
+    entries_.push_back({names, state.fit.statistic,
                         rank_effects(state.problem, state.parameters,
                                      generate_candidates(state.problem, options.candidates), options.ranking)});
     return entries_.back().ranking;
@@ -299,11 +307,6 @@ class ScreenMemo {
     double chi2;
     EffectRanking ranking;
   };
-  static std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
-    std::vector<std::string> names;
-    for (const EffectCandidate& c : effects) names.push_back(c.name);
-    return names;
-  }
   std::deque<Entry> entries_;  // a deque, so that the references rank() returns stay valid
   int reused_ = 0;
 };
@@ -689,8 +692,7 @@ double path_score(const Diagnosis& d) {
 
 /// The names of `effects`, sorted.
 std::vector<std::string> sorted_names(const std::vector<EffectCandidate>& effects) {
-  std::vector<std::string> names;
-  for (const EffectCandidate& c : effects) names.push_back(c.name);
+  std::vector<std::string> names = names_of(effects);
   std::sort(names.begin(), names.end());
   return names;
 }

@@ -13,6 +13,7 @@
 #include "modalcal/block_geometry.hpp"
 #include "modalcal/effects.hpp"
 #include "model_surface.hpp"
+#include "same_change.hpp"
 #include "support/text_util.hpp"
 
 namespace modalcal {
@@ -638,8 +639,7 @@ Problem problem_with_effects(const Problem& problem, const std::vector<EffectCan
 }
 
 bool EffectCandidate::neighbour_of(const EffectCandidate& other) const {
-  if (!location || !other.location || change.kind != other.change.kind || change.property != other.change.property)
-    return false;
+  if (!location || !other.location || !detail::same_change(*this, other)) return false;
   return (*location - *other.location).norm() < std::max(neighbourhood, other.neighbourhood);
 }
 

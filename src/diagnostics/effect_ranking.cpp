@@ -12,6 +12,7 @@
 
 #include "modalcal/effects.hpp"
 #include "modalcal/task_map.hpp"
+#include "same_change.hpp"
 #include "support/text_util.hpp"
 
 namespace modalcal {
@@ -389,12 +390,6 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
   }
 }
 
-/// Whether `a` and `b` are candidates of one kind in the sense of EffectCandidate::neighbour_of:
-/// the same change to the same property.
-bool same_change(const EffectCandidate& a, const EffectCandidate& b) {
-  return a.change.kind == b.change.kind && a.change.property == b.change.property;
-}
-
 /// Where the neighbour refits start: the best-scoring acceptable refit of each kind with
 /// neighbours (a place), while its score lies within the critical value of the best one's: of
 /// kinds that close, the data hardly tell which, and the first refits' places are only
@@ -405,7 +400,7 @@ std::vector<size_t> climb_starts(const std::vector<RankedEffect>& screened, doub
   for (size_t k = 0; k < screened.size(); ++k) {
     if (!screened[k].acceptable() || !screened[k].candidate.location) continue;
     auto same = std::find_if(best_of_kind.begin(), best_of_kind.end(),
-                             [&](size_t b) { return same_change(screened[b].candidate, screened[k].candidate); });
+                             [&](size_t b) { return detail::same_change(screened[b].candidate, screened[k].candidate); });
     if (same == best_of_kind.end())
       best_of_kind.push_back(k);
     else if (screened[k].score() > screened[*same].score())
