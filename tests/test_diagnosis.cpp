@@ -561,6 +561,40 @@ TEST(EffectRanking, TheNeighbourRefitsWalkOnToWhereTheDataFitBest) {
   EXPECT_NE(error.find("neighbour_rounds"), std::string::npos) << error;
 }
 
+// The refits' deflated solves stop at RankingOptions::refit_linear_tolerance. The refitted
+// chi-square comes from the forward solve, so a looser tolerance moves it only through the
+// Gauss-Newton path: by far less than the function tolerance's 1e-5 of it, with fewer solves.
+TEST(EffectRanking, RefitsAtTheLooserLinearToleranceEndAtTheSameChiSquare) {
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  auto ranked_at = [&](double tolerance) {
+    RankingOptions options;
+    options.neighbour_rounds = 0;
+    options.refit_linear_tolerance = tolerance;
+    return rank_effects(problem, problem.truth_values(), candidates, options);
+  };
+  const EffectRanking tight = ranked_at(1e-10), loose = ranked_at(1e-6);
+  int tight_solves = 0, loose_solves = 0, refits = 0;
+  for (const RankedEffect& t : tight.effects) {
+    if (!t.refitted) continue;
+    auto same = std::find_if(loose.effects.begin(), loose.effects.end(),
+                             [&](const RankedEffect& l) { return l.candidate.name == t.candidate.name; });
+    ASSERT_NE(same, loose.effects.end()) << t.candidate.name;
+    ASSERT_TRUE(same->refitted) << t.candidate.name;
+    EXPECT_NEAR(same->chi2_after, t.chi2_after, 1e-4 * t.chi2_after) << t.summary();
+    tight_solves += t.refit.linear_solves;
+    loose_solves += same->refit.linear_solves;
+    ++refits;
+  }
+  EXPECT_GE(refits, 3);
+  EXPECT_LT(loose_solves, tight_solves);
+  RankingOptions bad;
+  bad.refit_linear_tolerance = 1e-3;
+  std::string error;
+  EXPECT_FALSE(bad.IsValid(&error));
+  EXPECT_NE(error.find("refit_linear_tolerance"), std::string::npos) << error;
+}
+
 TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   // The truth's Poisson's ratio (0.02) lies below the candidate's range (nu0 - 0.2 = 0.1): the
   // refit stops on the bound, significant but standing in for a change it cannot make.

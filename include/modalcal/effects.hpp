@@ -235,6 +235,14 @@ struct MODALCAL_EXPORT RankingOptions {
   /// Deflated solves to 1e-8: the default 1e-11 buys nothing a ranking can see and costs more
   /// solves (docs/design.md, "Screen").
   ObjectiveOptions objective = default_objective_options();
+  /// The refits' deflated solves (their Jacobians and gradients; `objective`'s other settings
+  /// hold): a Gauss-Newton step needs a few digits of its Jacobian, and a refit's chi-square
+  /// comes from its forward solve, which this does not touch. 1e-6 costs a fifth fewer solves
+  /// than 1e-8 and leaves every refit's chi-square the same to 1e-5 (docs/design.md, "Refits and
+  /// significance"). Range: (0, 1e-4].
+  double refit_linear_tolerance = 1e-6;
+  /// `objective` with the refits' linear tolerance.
+  ObjectiveOptions refit_objective() const;
   /// How the refits, independent of each other, are run: in turn here when empty; the
   /// command-line tool passes one that spreads them over the processes of an MPI job.
   TaskMap task_map;

@@ -161,7 +161,7 @@ std::optional<Vector> calibrate_with(const Problem& fitted, const std::vector<Ef
   } catch (const std::invalid_argument&) {
     return std::nullopt;
   }
-  Objective objective(with, options.ranking.objective);
+  Objective objective(with, options.ranking.refit_objective());
   const ReducedSummary summary = minimize_reduced(objective, p, options.ranking.refit);
   if (summary.final.size() != p.size()) return std::nullopt;
   return summary.final;

@@ -168,13 +168,15 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   start = std::clamp(start, c.lower, c.upper);
   if (c.variable == EffectCandidate::Variable::Compliance && !std::isfinite(start)) start = c.upper;
   const Problem with = problem_with_effects(problem, {c}, {start});
-  Objective refit_objective(with, options.objective);
+  Objective refit_objective(with, options.refit_objective());
   Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
   p0[np] = start;
   const ReducedSummary refit = minimize_reduced(refit_objective, p0, options.refit);
   TaskCodec outcome;
   outcome.put(static_cast<double>(static_cast<int>(refit.status)));
   outcome.put(static_cast<double>(refit.iterations));
+  outcome.put(static_cast<double>(refit.forward_solves));
+  outcome.put(static_cast<double>(refit.linear_solves));
   outcome.put(refit.message);
   outcome.put(refit.final);
   const Evaluation after = refit.final.size() == np + 1 ? refit_objective.evaluate(refit.final) : Evaluation();
@@ -363,6 +365,8 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
     TaskCodec outcome(outcomes[i]);
     ranked.refit.status = static_cast<ReducedStatus>(static_cast<int>(outcome.get_number()));
     ranked.refit.iterations = static_cast<int>(outcome.get_number());
+    ranked.refit.forward_solves = static_cast<int>(outcome.get_number());
+    ranked.refit.linear_solves = static_cast<int>(outcome.get_number());
     ranked.refit.message = outcome.get_text();
     ranked.refit.final = outcome.get_vector();
     if (ranked.refit.final.size() != np + 1 || !(outcome.get_number() > 0)) continue;  // no usable refit
@@ -500,6 +504,12 @@ ObjectiveOptions RankingOptions::default_objective_options() {
   return options;
 }
 
+ObjectiveOptions RankingOptions::refit_objective() const {
+  ObjectiveOptions options = objective;
+  options.linear_tolerance = refit_linear_tolerance;
+  return options;
+}
+
 bool RankingOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& message) {
     if (error) *error = message;
@@ -513,6 +523,8 @@ bool RankingOptions::IsValid(std::string* error) const {
     return bad("place_refit_share = " + detail::option_text(place_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
     return bad("significance = " + detail::option_text(significance) + ": must be in (0, 0.5)");
+  if (!(refit_linear_tolerance > 0 && refit_linear_tolerance <= 1e-4))
+    return bad("refit_linear_tolerance = " + detail::option_text(refit_linear_tolerance) + ": must be in (0, 1e-4]");
   std::string inner;
   if (!refit.IsValid(&inner)) return bad("refit." + inner);
   if (!objective.IsValid(&inner)) return bad("objective." + inner);

@@ -23,17 +23,44 @@ Matrix modal_part(const DeflationBasis& basis, const std::vector<int>& own, cons
 
 /// Z's active columns <- the preconditioned residual, projected onto the complement of the modes.
 /// Only the unconverged columns go through the (block) preconditioner.
-void precondition_active(const Matrix& R, const std::vector<bool>& active, const DeflationBasis& basis,
-                         const std::function<Matrix(const Matrix&)>& precondition, Matrix* Z, int* column_solves) {
+std::vector<int> active_columns(const std::vector<bool>& active) {
   std::vector<int> columns;
   for (int c = 0; c < static_cast<int>(active.size()); ++c)
     if (active[c]) columns.push_back(c);
-  Matrix R_active(R.rows(), static_cast<Eigen::Index>(columns.size()));
-  for (size_t a = 0; a < columns.size(); ++a) R_active.col(static_cast<Eigen::Index>(a)) = R.col(columns[a]);
-  Matrix Z_active = precondition(R_active);
+  return columns;
+}
+
+Matrix gather(const Matrix& X, const std::vector<int>& columns) {
+  Matrix part(X.rows(), static_cast<Eigen::Index>(columns.size()));
+  for (size_t a = 0; a < columns.size(); ++a) part.col(static_cast<Eigen::Index>(a)) = X.col(columns[a]);
+  return part;
+}
+
+void precondition_active(const Matrix& R, const std::vector<bool>& active, const DeflationBasis& basis,
+                         const std::function<Matrix(const Matrix&)>& precondition, Matrix* Z, int* column_solves) {
+  const std::vector<int> columns = active_columns(active);
+  Matrix Z_active = precondition(gather(R, columns));
   *column_solves += static_cast<int>(columns.size());
   Z_active -= basis.modes * (basis.mass_modes.transpose() * Z_active);  // (I - U U^T M) Z
   for (size_t a = 0; a < columns.size(); ++a) Z->col(columns[a]) = Z_active.col(static_cast<Eigen::Index>(a));
+}
+
+/// (K - shift_c M) p_c for the listed columns c of P, in that order. K and M are stored in full:
+/// the row-wise product reads them once for all columns, where Eigen's column-major sparse x
+/// dense product is several times slower per column. Columns converge at different rates, so
+/// only the active ones are multiplied (a converged column's residual is not used again).
+Matrix shifted_times(const SparseMatrix& K, const SparseMatrix& M, const Vector& shift, const Matrix& P,
+                     const std::vector<int>& columns) {
+  const Matrix P_active = gather(P, columns);
+  Vector shifts(static_cast<Eigen::Index>(columns.size()));
+  for (size_t a = 0; a < columns.size(); ++a) shifts[static_cast<Eigen::Index>(a)] = shift[columns[a]];
+  return symmetric_times(K, P_active) - symmetric_times(M, P_active) * shifts.asDiagonal();
+}
+
+/// The listed columns of R <- (I - M U U^T) R: orthogonal to the modes again.
+void project_out_modes(const DeflationBasis& basis, const std::vector<int>& columns, Matrix* R) {
+  const Matrix drift = basis.mass_modes * (basis.modes.transpose() * gather(*R, columns));
+  for (size_t a = 0; a < columns.size(); ++a) R->col(columns[a]) -= drift.col(static_cast<Eigen::Index>(a));
 }
 
 bool any_of(const std::vector<bool>& flags) { return std::find(flags.begin(), flags.end(), true) != flags.end(); }
@@ -61,11 +88,6 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
   out.solution = modal_part(basis, own, shift, coefficients);
   Matrix R = B - MU * coefficients;
 
-  // K and M are stored in full: the row-wise product reads them once for all columns, where
-  // Eigen's column-major sparse x dense product is several times slower per column.
-  auto apply = [&](const Matrix& P) -> Matrix {
-    return symmetric_times(K, P) - symmetric_times(M, P) * shift.asDiagonal();
-  };
   // Converged relative to the whole right-hand side: when the computed modes carry all of it, the
   // remainder is round-off and needs no iteration.
   Vector target(m);
@@ -80,10 +102,12 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
   for (int c = 0; c < m; ++c) rz[c] = R.col(c).dot(Z.col(c));
   Matrix Y = Matrix::Zero(n, m);
   for (out.iterations = 0; out.iterations < max_iterations && any_of(active); ++out.iterations) {
-    const Matrix Q = apply(P);
-    for (int c = 0; c < m; ++c) {
-      if (!active[c]) continue;
-      const double curvature = P.col(c).dot(Q.col(c));
+    const std::vector<int> columns = active_columns(active);
+    const Matrix Q = shifted_times(K, M, shift, P, columns);
+    for (size_t a = 0; a < columns.size(); ++a) {
+      const int c = columns[a];
+      const auto q = Q.col(static_cast<Eigen::Index>(a));
+      const double curvature = P.col(c).dot(q);
       if (!(curvature > 0)) {
         out.message = "K - lambda M is not positive definite on the deflated space (curvature " +
                       std::to_string(curvature) + "): an eigenvalue below lambda_" + std::to_string(own[c] + 1) +
@@ -92,10 +116,9 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
       }
       const double alpha = rz[c] / curvature;
       Y.col(c) += alpha * P.col(c);
-      R.col(c) -= alpha * Q.col(c);
+      R.col(c) -= alpha * q;
     }
-    // Keep the residual orthogonal to U despite rounding in the computed modes.
-    R -= MU * (U.transpose() * R);
+    project_out_modes(basis, columns, &R);  // rounding in the computed modes lets R drift into them
     for (int c = 0; c < m; ++c)
       if (active[c] && R.col(c).norm() <= target[c]) active[c] = false;
     if (!any_of(active)) break;

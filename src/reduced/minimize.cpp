@@ -190,9 +190,15 @@ class ReducedRun {
     Point next = step(&direction);
     if (!next.ok) return finish(ReducedStatus::LineSearchFailed, next.message);
     const Vector s = next.x - current_.x;
+    const double decrease = current_.value - next.value;
+    const bool last = options_.function_tolerance > 0 &&
+                      decrease <= options_.function_tolerance * std::max(std::abs(next.value), 1.0);
     if (second_order_) {
       use_exact_hessian_ = newton_ && next.value > 0.8 * current_.value;
-      next = problem_.evaluate(next.x, use_exact_hessian_ ? Need::Hessian : Need::Jacobian);
+      // The last iterate needs only its gradient (for the record): its Jacobian or Hessian, one
+      // solve per parameter and measured shape, would serve a step that is not taken.
+      const Need need = last ? Need::Gradient : use_exact_hessian_ ? Need::Hessian : Need::Jacobian;
+      next = problem_.evaluate(next.x, need);
       if (!next.ok)
         return finish(ReducedStatus::ForwardSolveFailed, "derivatives at the accepted point: " + next.message);
       // Full steps mean the Gauss-Newton model is good: trust it more; backtracking: less.
@@ -201,12 +207,10 @@ class ReducedRun {
     } else {
       memory_.update(s, next.gradient - current_.gradient);
     }
-    const double decrease = current_.value - next.value;
     current_ = next;
     record(k, s.norm());
     summary_.iterations = k;
-    if (options_.function_tolerance > 0 &&
-        decrease <= options_.function_tolerance * std::max(std::abs(current_.value), 1.0)) {
+    if (last) {
       char message[160];
       std::snprintf(message, sizeof message,
                     "the last iteration lowered the objective by only %.3e (function tolerance %.1e of its value)",
