@@ -21,8 +21,7 @@ Matrix modal_part(const DeflationBasis& basis, const std::vector<int>& own, cons
   return part;
 }
 
-/// Z's active columns <- the preconditioned residual, projected onto the complement of the modes.
-/// Only the unconverged columns go through the (block) preconditioner.
+/// The indices of the columns still iterating.
 std::vector<int> active_columns(const std::vector<bool>& active) {
   std::vector<int> columns;
   for (int c = 0; c < static_cast<int>(active.size()); ++c)
@@ -30,12 +29,15 @@ std::vector<int> active_columns(const std::vector<bool>& active) {
   return columns;
 }
 
+/// The listed columns of X, in that order.
 Matrix gather(const Matrix& X, const std::vector<int>& columns) {
   Matrix part(X.rows(), static_cast<Eigen::Index>(columns.size()));
   for (size_t a = 0; a < columns.size(); ++a) part.col(static_cast<Eigen::Index>(a)) = X.col(columns[a]);
   return part;
 }
 
+/// Z's active columns <- the preconditioned residual, projected onto the complement of the modes.
+/// Only the unconverged columns go through the (block) preconditioner.
 void precondition_active(const Matrix& R, const std::vector<bool>& active, const DeflationBasis& basis,
                          const std::function<Matrix(const Matrix&)>& precondition, Matrix* Z, int* column_solves) {
   const std::vector<int> columns = active_columns(active);
