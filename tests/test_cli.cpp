@@ -412,6 +412,9 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   // One step that ends consistent with the noise walks no other first step.
   ASSERT_TRUE(d["paths"].is_array()) << d.dump();
   EXPECT_TRUE(d["paths"].empty()) << d["paths"].dump();
+  // The first step's screen and the one with its effect in: neither a model screened before.
+  EXPECT_GE(d["screens"]["run"].get<int>(), 2) << d["screens"].dump();
+  EXPECT_EQ(d["screens"]["taken_again"].get<int>(), 0) << d["screens"].dump();
   bool block_wide_is_null = false;
   for (const auto& r : d["ranking"])
     if (r["name"] == "bar.stiffness_scale" || r["name"] == "bar.mass_scale") block_wide_is_null = r["location"].is_null();

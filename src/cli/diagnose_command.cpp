@@ -258,6 +258,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
                              {"joined", x.joined.empty() ? nlohmann::json() : nlohmann::json(x.joined)},
                              {"joined_after", x.joined_after},
                              {"no_second_step", x.no_second_step}});
+  json["screens"] = {{"run", d.screens}, {"taken_again", d.screens_reused}};
   json["started_with"] = nlohmann::json::array();
   for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
   json["residual_final"] = {{"statistic", d.final_fit.statistic},
