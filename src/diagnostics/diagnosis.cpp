@@ -285,17 +285,22 @@ std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
 class ScreenMemo {
  public:
   /// The ranking of the candidates in `state`'s model, screened now or taken from an earlier screen.
-  const EffectRanking& rank(const LoopState& state, const DiagnosisOptions& options) {
+  /// `candidates`, when not null, receives the candidates of `state`'s model (generated once: the
+  /// diagnosis keeps the first screen's).
+  const EffectRanking& rank(const LoopState& state, const DiagnosisOptions& options,
+                            std::vector<EffectCandidate>* candidates = nullptr) {
     const std::vector<std::string> names = names_of(state.effects);
     for (const Entry& e : entries_)
       if (e.names == names &&
           std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
         ++reused_;
+        if (candidates) *candidates = generate_candidates(state.problem, options.candidates);
         return e.ranking;
       }
-    entries_.push_back({names, state.fit.statistic,
-                        rank_effects(state.problem, state.parameters,
-                                     generate_candidates(state.problem, options.candidates), options.ranking)});
+    std::vector<EffectCandidate> screened = generate_candidates(state.problem, options.candidates);
+    entries_.push_back(
+        {names, state.fit.statistic, rank_effects(state.problem, state.parameters, screened, options.ranking)});
+    if (candidates) *candidates = std::move(screened);
     return entries_.back().ranking;
   }
   int screened() const { return static_cast<int>(entries_.size()); }
@@ -326,8 +331,7 @@ void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& 
 /// refit when it is significant. Returns false when nothing was accepted.
 bool forward_step(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, bool may_accept,
                   ScreenMemo* memo, Diagnosis* d) {
-  if (d->rankings.empty()) d->candidates = generate_candidates(state->problem, options.candidates);
-  d->rankings.push_back(memo->rank(*state, options));
+  d->rankings.push_back(memo->rank(*state, options, d->rankings.empty() ? &d->candidates : nullptr));
   const EffectRanking& ranking = d->rankings.back();
   if (!may_accept || !acceptable(ranking)) return false;
   accept_effect(fitted, 0, options, state, d);
