@@ -163,6 +163,32 @@ TEST(Reduced, OptionsAreValidatedNamingTheField) {
   options.armijo = 0.7;
   EXPECT_FALSE(options.IsValid(&error));
   EXPECT_NE(error.find("armijo"), std::string::npos);
+  options = ReducedOptions();
+  options.initial_damping = 0;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("initial_damping"), std::string::npos);
+}
+
+TEST(Reduced, ALightlyDampedFirstStepFromANearStartGoesFurtherToTheSameMinimum) {
+  // From 20 % and 10 % off the truth the Gauss-Newton model is nearly exact: the first step
+  // damped by 1e-2 lowers J by more than 99 %, the one damped by 1 goes about half way (J falls by
+  // about three quarters). Both runs end at the truth.
+  const Problem problem = TwoOscillators(4.0e4, 1.0e4, 4.8e4, 1.1e4);
+  ReducedOptions options;
+  options.method = ReducedOptions::Method::GaussNewton;
+  options.gradient_tolerance = 1e-12;
+  std::vector<ReducedSummary> runs;
+  for (double damping : {1.0, 1e-2}) {
+    options.initial_damping = damping;
+    Objective objective(problem);
+    runs.push_back(minimize_reduced(objective, problem.initial_values(), options));
+    ASSERT_TRUE(runs.back().converged()) << runs.back().FullReport();
+    EXPECT_LT(MaxRelativeError(runs.back().final, problem.truth_values()), 1e-6) << runs.back().FullReport();
+    ASSERT_GE(runs.back().history.size(), 2u);
+  }
+  const double start = runs[0].history[0].objective;
+  EXPECT_GT(runs[0].history[1].objective, 0.05 * start) << runs[0].FullReport();
+  EXPECT_LT(runs[1].history[1].objective, 0.05 * start) << runs[1].FullReport();
 }
 
 TEST(Lfu, SyntheticStudyLbfgsRecoversAllParametersWithin25Iterations) {

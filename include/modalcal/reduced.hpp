@@ -90,6 +90,12 @@ struct MODALCAL_EXPORT ReducedOptions {
   /// Longest step per variable, in scaled units (a decade for log scaling), or relative to the
   /// starting value for unscaled variables. Range: > 0.
   double max_step = 1.0;
+  /// Gauss-Newton and Newton: the Levenberg parameter of the first step, relative to the model
+  /// matrix's diagonal (it falls by 10 after every full step and rises by 10, to at most 1, after
+  /// a backtracking one). 1 keeps the first steps from a far start gradient-like; a start that
+  /// a linear model already put near the minimum can take its first step nearly undamped.
+  /// Range: (0, 1].
+  double initial_damping = 1.0;
   /// Called after every iteration (progress display).
   std::function<void(const IterationRecord&)> progress;
   bool IsValid(std::string* error) const;

@@ -495,6 +495,10 @@ ReducedOptions RankingOptions::default_refit_options() {
   options.gradient_tolerance = 1e-4;
   options.relative_gradient_tolerance = 1e-8;
   options.function_tolerance = 1e-5;
+  // A refit starts where the screen's linear model put it, one Gauss-Newton step from the
+  // calibrated point: the next step is short and the model good, and a first step damped by 1
+  // would only halve it (a fifth fewer solves per refit, the same minima on the seeds measured).
+  options.initial_damping = 1e-2;
   return options;
 }
 

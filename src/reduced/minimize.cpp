@@ -39,6 +39,8 @@ bool ReducedOptions::IsValid(std::string* error) const {
   if (max_line_search_steps < 1)
     return bad("max_line_search_steps = " + detail::option_text(max_line_search_steps) + ": must be >= 1");
   if (!(max_step > 0)) return bad("max_step = " + detail::option_text(max_step) + ": must be > 0");
+  if (!(initial_damping > 0 && initial_damping <= 1))
+    return bad("initial_damping = " + detail::option_text(initial_damping) + ": must be in (0, 1]");
   return true;
 }
 
@@ -148,7 +150,8 @@ class ReducedRun {
         newton_(options.method == ReducedOptions::Method::Newton),
         need_(second_order_ ? Need::Jacobian : Need::Gradient),
         problem_(objective, options),
-        memory_(options.memory) {}
+        memory_(options.memory),
+        damping_(options.initial_damping) {}
 
   ReducedSummary run(const Vector& p0) {
     summary_.method = newton_ ? "reduced Newton" : second_order_ ? "reduced Gauss-Newton" : "reduced L-BFGS";
@@ -292,10 +295,10 @@ class ReducedRun {
   // globally better behaved and needs no second derivatives), the exact Hessian once it slows
   // down, where only the exact Hessian converges quadratically.
   bool use_exact_hessian_ = false;
-  // Levenberg parameter, relative to the Gauss-Newton diagonal: strong at first, so that steps
-  // from a far start stay gradient-like and do not leap into another basin; relaxed by 10 after
-  // every full step.
-  double damping_ = 1.0;
+  // Levenberg parameter, relative to the Gauss-Newton diagonal: by default strong at first, so
+  // that steps from a far start stay gradient-like and do not leap into another basin; relaxed by
+  // 10 after every full step.
+  double damping_;
 };
 
 }  // namespace
