@@ -37,11 +37,7 @@ int index_of(const std::vector<std::string>& names, const std::string& name) {
   return it == names.end() ? -1 : static_cast<int>(it - names.begin());
 }
 
-std::string trim(const std::string& s) {
-  const size_t first = s.find_first_not_of(" \t");
-  if (first == std::string::npos) return "";
-  return s.substr(first, s.find_last_not_of(" \t") - first + 1);
-}
+using detail::trim;
 
 double parse_number(const std::string& text, const std::string& token, const std::string& what) {
   const std::string t = trim(token);
