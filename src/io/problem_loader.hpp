@@ -134,7 +134,7 @@ class Loader {
   void check_model();
   void check_free_dofs();
   void check_reference_nodes_used() const;
-  void check_sensors_move(const Field& f) const;
+  void check_sensors_move(const Field& f);
   void check_mesh_size(double nodes, double extra_bytes, const Field& at, const std::string& remedy) const;
   void add_mesh_node(long id, const Vec3& x);
   void finish_mesh();
