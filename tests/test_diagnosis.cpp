@@ -138,13 +138,16 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   EXPECT_DOUBLE_EQ(nu->upper, 0.49);
   EXPECT_TRUE(Find(candidates, "top.nu"));
   EXPECT_FALSE(Find(candidates, "pad.nu"));
-  // The joint: its six components except the calibrated kx; present ones in decades, absent
-  // (rotational) ones linear from 0 with a reference from the joint's stiffness and patch size.
+  // The joint: its six components except the calibrated kx; present ones in decades, two either
+  // way (a loose bolt, a seized one), absent (rotational) ones linear from 0 with a reference
+  // from the joint's stiffness and patch size.
   EXPECT_FALSE(Find(candidates, "j.kx"));
   const EffectCandidate* ky = Find(candidates, "j.ky");
   ASSERT_TRUE(ky);
   EXPECT_EQ(ky->variable, EffectCandidate::Variable::Log);
   EXPECT_EQ(ky->nominal, 100);
+  EXPECT_EQ(ky->lower, 1);
+  EXPECT_EQ(ky->upper, 1e4);
   const EffectCandidate* krx = Find(candidates, "j.krx");
   ASSERT_TRUE(krx);
   EXPECT_EQ(krx->variable, EffectCandidate::Variable::Linear);

@@ -250,11 +250,14 @@ class CandidateFactory {
       c->upper = c->screen_value;
     } else if (effect.nominal_value != 0 &&
                (change.kind == ModelChange::Kind::SetProperty || change.kind == ModelChange::Kind::AddRegion)) {
-      // A present property (or an absent scale factor, nominal 1): a factor of ten either way.
+      // A present property (or an absent scale factor, nominal 1): a factor of ten either way; a
+      // joint's or spring's stiffness component a factor of a hundred (a loose bolt, a seized
+      // bearing), so that a truth a decade off does not end its refit on a bound.
       c->variable = EffectCandidate::Variable::Log;
       c->nominal = c->screen_value = c->reference = effect.nominal_value;
-      c->lower = effect.nominal_value / 10;
-      c->upper = effect.nominal_value * 10;
+      const double factor = at.component >= 0 ? 100 : 10;
+      c->lower = effect.nominal_value / factor;
+      c->upper = effect.nominal_value * factor;
       if (change.property == "nu") {  // bounded by physics, not by a factor
         c->variable = EffectCandidate::Variable::Linear;
         c->lower = std::max(-0.99, effect.nominal_value - 0.2);
