@@ -598,6 +598,27 @@ TEST(EffectRanking, RefitsAtTheLooserLinearToleranceEndAtTheSameChiSquare) {
   EXPECT_NE(error.find("refit_linear_tolerance"), std::string::npos) << error;
 }
 
+TEST(EffectRanking, AJointSoftenedFromNearRigidIsPredictedInItsCompliance) {
+  // The model's joint holds y at 1e4, where it is near rigid (the modes hardly change from 1e4 to
+  // 1e6); the truth's is 300. In log10 k the slope at 1e4 is small, the step stops on the range's
+  // bound (100) and predicts a fifth of the reduction the refit achieves; in compliance 1/k, in
+  // which a near-rigid joint moves the modes in proportion, the same tangent predicts more than
+  // half, and the value to within 0.1 decade.
+  Problem problem = noise_weighted(WithHiddenEffect({"j.ky=300"}, 3), MeasurementNoise{0.002, 0.02, 3});
+  apply_model_change(&problem.model, parse_model_change("j.ky=1e4"));
+  RankingOptions options;
+  options.refits = 1;
+  options.place_refits = options.neighbour_refits = 0;
+  const EffectRanking ranking = rank_effects(problem, problem.truth_values(), {make_candidate(problem, "j.ky")}, options);
+  ASSERT_EQ(ranking.effects.size(), 1u);
+  const RankedEffect& ky = ranking.effects.front();
+  ASSERT_TRUE(ky.refitted);
+  EXPECT_TRUE(ky.acceptable()) << ky.summary();
+  EXPECT_NEAR(ky.value / 300, 1, 0.15) << ky.summary();
+  EXPECT_GT(ky.predicted_reduction, 0.5 * ky.achieved_reduction) << ky.summary();
+  EXPECT_NEAR(std::log10(ky.predicted_value / ky.value), 0, 0.1) << ky.summary();
+}
+
 TEST(EffectRanking, ARefitThatEndsOnABoundIsListedButNotAcceptable) {
   // The truth's Poisson's ratio (0.02) lies below the candidate's range (nu0 - 0.2 = 0.1): the
   // refit stops on the bound, significant but standing in for a change it cannot make.

@@ -43,7 +43,10 @@
 /// every candidate added (at the value meaning "no effect"; a support at a stiff k₀ = 10³ k_ref)
 /// gives all columns at once; its shape rows come from one adjoint solve per sensor reading
 /// (ObjectiveOptions::Jacobian), not per candidate. Should that model fail to solve, the
-/// supports' candidates are evaluated apart, per support.
+/// supports' candidates are evaluated apart, per support. A joint's or spring's present stiffness
+/// component is also stepped along the same tangent in its compliance \f$1/k\f$, over the same
+/// range, the larger prediction kept: near rigid, the modes move in proportion to a joint's
+/// compliance, while in log10 k the slope is small and the step stops on the range's bound.
 ///
 /// **Refit.** The best few by prediction are recalibrated with all calibration parameters free
 /// (reduced L-BFGS from the calibrated point, the candidate started at its first-order value);
@@ -254,8 +257,8 @@ struct MODALCAL_EXPORT RankingOptions {
 
 struct MODALCAL_EXPORT RankedEffect {
   EffectCandidate candidate;
-  double predicted_reduction = 0;  ///< first-order \f$\Delta X^2_{pred}\f$ (bounded)
-  double predicted_value = 0;      ///< the value at the first-order optimum
+  double predicted_reduction = 0;  ///< the screen's \f$\Delta X^2_{pred}\f$ (bounded)
+  double predicted_value = 0;      ///< the value at the screen's optimum
   bool refitted = false;
   double achieved_reduction = NAN;  ///< \f$X^2_{before} - X^2_{after}\f$ of the refit
   double value = NAN;               ///< identified by the refit (else the predicted value)

@@ -5,9 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 #include "modalcal/effects.hpp"
@@ -280,70 +282,138 @@ ScreenJacobian screen_jacobian(const Problem& problem, const Vector& calibrated,
   return s;
 }
 
-/// Each evaluated candidate's first-order prediction: its column projected off what the
-/// calibration parameters can already do, a 1-D Gauss-Newton step in its screening variable
-/// within its bounds, the chi-square reduction that step predicts, and where the parameters go.
-std::vector<RankedEffect> predict(const Problem& problem, const Vector& calibrated, const Vector& r,
-                                  const std::vector<EffectCandidate>& usable, ScreenJacobian& jacobian,
-                                  EffectRanking* ranking) {
-  const int np = static_cast<int>(problem.parameters.size());
-  Matrix& Jp = jacobian.parameters;
-  // What the calibration parameters can already do: an orthonormal basis of their columns.
-  Matrix Q(r.size(), 0);
-  if (Jp.size() == 0) Jp = Matrix(r.size(), 0);
-  Vector column_norms = Vector::Ones(np);
-  for (int j = 0; j < np; ++j)
-    if (const double n = Jp.col(j).norm(); n > 0) {
-      column_norms[j] = n;
-      Jp.col(j) /= n;
-    }
-  Eigen::ColPivHouseholderQR<Matrix> qr(Jp);
-  qr.setThreshold(1e-10);
-  if (np > 0) Q = qr.householderQ() * Matrix::Identity(r.size(), qr.rank());
-  // Where the linear model puts the calibration parameters once the effect has moved by `step`:
-  // p - J_p^+ (r + j step), each kept within a factor of two and its bounds (the refit's start).
-  auto shifted_parameters = [&](const Vector& column, double step) {
-    Vector p1 = calibrated;
-    if (np == 0) return p1;
-    const Vector shift = qr.solve(Vector(-(r + column * step))).cwiseQuotient(column_norms);
-    for (int j = 0; j < np; ++j) {
-      const Parameter& q = problem.parameters[j];
-      const double v = calibrated[j] + shift[j];
-      p1[j] =
-          std::clamp(calibrated[j] > 0 ? std::clamp(v, 0.5 * calibrated[j], 2 * calibrated[j]) : v, q.lower, q.upper);
+/// What the calibration parameters can already do, to first order at the calibrated point: an
+/// orthonormal basis of their (scaled) columns, and where the linear model puts them.
+class ParameterSpan {
+ public:
+  ParameterSpan(const Problem& problem, const Vector& calibrated, Matrix jacobian, Eigen::Index num_residuals)
+      : problem_(problem), calibrated_(calibrated), np_(static_cast<int>(problem.parameters.size())) {
+    if (jacobian.size() == 0) jacobian = Matrix(num_residuals, 0);
+    column_norms_ = Vector::Ones(np_);
+    for (int j = 0; j < np_; ++j)
+      if (const double n = jacobian.col(j).norm(); n > 0) {
+        column_norms_[j] = n;
+        jacobian.col(j) /= n;
+      }
+    qr_.setThreshold(1e-10);
+    qr_.compute(jacobian);
+    Q_ = np_ > 0 ? Matrix(qr_.householderQ() * Matrix::Identity(num_residuals, qr_.rank()))
+                 : Matrix(num_residuals, 0);
+  }
+  /// `column` less what the calibration parameters can do.
+  Vector projected(const Vector& column) const { return column - Q_ * (Q_.transpose() * column); }
+  /// Where the linear model puts the calibration parameters once an effect with residual
+  /// column `column` has moved by `step`: p - J_p^+ (r + column step), each kept within a factor
+  /// of two and its bounds (the refit's start).
+  Vector shifted(const Vector& r, const Vector& column, double step) const {
+    Vector p1 = calibrated_;
+    if (np_ == 0) return p1;
+    const Vector shift = qr_.solve(Vector(-(r + column * step))).cwiseQuotient(column_norms_);
+    for (int j = 0; j < np_; ++j) {
+      const Parameter& q = problem_.parameters[j];
+      const double v = calibrated_[j] + shift[j];
+      p1[j] = std::clamp(calibrated_[j] > 0 ? std::clamp(v, 0.5 * calibrated_[j], 2 * calibrated_[j]) : v, q.lower,
+                         q.upper);
     }
     return p1;
-  };
+  }
+
+ private:
+  const Problem& problem_;
+  const Vector& calibrated_;
+  int np_;
+  Vector column_norms_;
+  Eigen::ColPivHouseholderQR<Matrix> qr_;
+  Matrix Q_;
+};
+
+/// A line through residual space along which a candidate's effect is modelled: r + column t for
+/// t in [lo, hi] (the candidate's bounds), and the candidate's value at t.
+struct ResidualLine {
+  Vector column;
+  double lo = 0, hi = 0;
+  std::function<double(double)> value_at;
+};
+
+/// The tangent: the Jacobian column in the candidate's screening variable, from its screen value.
+ResidualLine tangent(const EffectCandidate& c, const Vector& column_per_value) {
+  const double x0 = to_variable(c, c.screen_value);
+  double lo = to_variable(c, c.lower) - x0, hi = to_variable(c, c.upper) - x0;
+  if (lo > hi) std::swap(lo, hi);  // compliance runs opposite to stiffness
+  return {column_per_value * value_per_variable(c, c.screen_value), lo, hi,
+          [&c, x0](double t) { return from_variable(c, x0 + t); }};
+}
+
+/// The 1-D Gauss-Newton step along `line`, projected off what the calibration parameters can do:
+/// the chi-square reduction that step predicts, the value and where the parameters go. Empty,
+/// with the reason, when the line does nothing the parameters cannot.
+std::optional<RankedEffect> one_dimensional_step(const EffectCandidate& c, const ResidualLine& line, const Vector& r,
+                                                 const ParameterSpan& span, std::string* why_not) {
+  const double norm = line.column.norm();
+  if (!(norm > 0) || !std::isfinite(norm)) {
+    *why_not = "no effect on the measured modes";
+    return std::nullopt;
+  }
+  const Vector projected = span.projected(line.column);
+  const double h = projected.squaredNorm();
+  if (!(h > 1e-10 * norm * norm)) {
+    *why_not = "the calibration parameters already do this";
+    return std::nullopt;
+  }
+  const double g = projected.dot(r);
+  const double step = std::clamp(-g / h, line.lo, line.hi);
+  RankedEffect ranked;
+  ranked.candidate = c;
+  ranked.predicted_reduction = std::max(0.0, -2 * step * g - step * step * h);
+  ranked.predicted_value = line.value_at(step);
+  ranked.value = ranked.predicted_value;
+  const Vector p = span.shifted(r, line.column, step);
+  ranked.parameters.resize(p.size() + 1);
+  ranked.parameters << p, ranked.predicted_value;
+  return ranked;
+}
+
+/// True for a joint's or spring's present stiffness component.
+bool is_present_stiffness(const EffectCandidate& c) {
+  return c.variable == EffectCandidate::Variable::Log && c.change.kind == ModelChange::Kind::SetProperty &&
+         std::find(kStiffnessComponentNames.begin(), kStiffnessComponentNames.end(), c.change.property) !=
+             kStiffnessComponentNames.end();
+}
+
+/// The tangent of a present stiffness k0 in its compliance 1/k, over the same range. Near rigid a
+/// joint acts in series with the structure and the modes move in proportion to its compliance, so
+/// along this tangent the step reaches a softening of a decade or more, where in log10 k the
+/// slope is small and the step stops on the range's bound, its prediction cut short.
+ResidualLine compliance_tangent(const EffectCandidate& c, const Vector& column_per_value) {
+  const double k0 = c.screen_value;
+  return {column_per_value * (-k0 * k0), 1 / c.upper - 1 / k0, 1 / c.lower - 1 / k0,
+          [k0](double t) { return 1 / (1 / k0 + t); }};
+}
+
+/// Each evaluated candidate's first-order prediction: the 1-D Gauss-Newton step along its
+/// tangent; for a present stiffness component also along its tangent in compliance, the larger
+/// prediction kept (the refit decides).
+std::vector<RankedEffect> predict(const Problem& problem, const Vector& calibrated, const Vector& r,
+                                  const std::vector<EffectCandidate>& usable, const ScreenJacobian& jacobian,
+                                  EffectRanking* ranking) {
+  const ParameterSpan span(problem, calibrated, jacobian.parameters, r.size());
   std::vector<RankedEffect> screened;
   for (size_t k = 0; k < usable.size(); ++k) {
     if (!jacobian.evaluated[k]) continue;
     const EffectCandidate& c = usable[k];
-    const Vector column = jacobian.candidates.col(k) * value_per_variable(c, c.screen_value);
-    const double norm = column.norm();
-    if (!(norm > 0) || !std::isfinite(norm)) {
-      ranking->set_aside.emplace_back(c.name, "no effect on the measured modes");
+    std::string why_not;
+    std::optional<RankedEffect> ranked =
+        one_dimensional_step(c, tangent(c, jacobian.candidates.col(k)), r, span, &why_not);
+    if (!ranked) {
+      ranking->set_aside.emplace_back(c.name, why_not);
       continue;
     }
-    const Vector projected = column - Q * (Q.transpose() * column);
-    const double h = projected.squaredNorm();
-    if (!(h > 1e-10 * norm * norm)) {
-      ranking->set_aside.emplace_back(c.name, "the calibration parameters already do this");
-      continue;
-    }
-    // 1-D Gauss-Newton in the screening variable, within the candidate's bounds.
-    const double g = projected.dot(r);
-    const double x0 = to_variable(c, c.screen_value);
-    double lo = to_variable(c, c.lower) - x0, hi = to_variable(c, c.upper) - x0;
-    if (lo > hi) std::swap(lo, hi);  // compliance runs opposite to stiffness
-    const double step = std::clamp(-g / h, lo, hi);
-    RankedEffect ranked;
-    ranked.candidate = c;
-    ranked.predicted_reduction = std::max(0.0, -2 * step * g - step * step * h);
-    ranked.predicted_value = from_variable(c, x0 + step);
-    ranked.value = ranked.predicted_value;
-    ranked.parameters.resize(np + 1);
-    ranked.parameters << shifted_parameters(column, step), ranked.predicted_value;
-    screened.push_back(ranked);
+    if (is_present_stiffness(c))
+      if (std::optional<RankedEffect> in_compliance =
+              one_dimensional_step(c, compliance_tangent(c, jacobian.candidates.col(k)), r, span, &why_not);
+          in_compliance && in_compliance->predicted_reduction > ranked->predicted_reduction)
+        ranked = std::move(in_compliance);
+    screened.push_back(std::move(*ranked));
   }
   return screened;
 }
