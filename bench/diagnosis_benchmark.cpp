@@ -845,6 +845,31 @@ double value_error(const EffectSpec& t, const EffectCandidate& a, double value) 
   return value / t.value - 1;
 }
 
+/// With DIAGNOSIS_BENCHMARK_TRACE: every candidate of the first step's ranking that would count as
+/// the truth's kind and place (at its refit or predicted value), with its rank, prediction, refit
+/// and kind penalty: where the right answer stood when the loop chose another.
+void trace_right_candidates(const ProblemContext& ctx, const Case& c, const Diagnosis& d) {
+  for (size_t r = 0; r < d.ranking.effects.size() && r < 40; ++r) {
+    const RankedEffect& x = d.ranking.effects[r];
+    std::fprintf(stderr, "  top %4zu %-48s predicted %8.2f achieved %8.2f penalty %5.2f value %.4g\n", r + 1,
+                 x.candidate.name.c_str(), x.predicted_reduction, x.achieved_reduction, x.kind_penalty,
+                 x.refitted ? x.value : x.predicted_value);
+  }
+  for (const EffectSpec& e : c.effects) {
+    const double h2 = 2 * (e.location ? element_size_at(ctx, *e.location) : 0);
+    int shown = 0;
+    for (size_t r = 0; r < d.ranking.effects.size() && shown < 8; ++r) {
+      const RankedEffect& x = d.ranking.effects[r];
+      const double value = x.refitted ? x.value : x.predicted_value;
+      if (!kinds_match(e, x.candidate, value, effect_location(ctx.problem.model, x.candidate), h2)) continue;
+      ++shown;
+      std::fprintf(stderr, "  right %-12s rank %4zu %-48s predicted %8.2f achieved %8.2f penalty %5.2f value %.4g\n",
+                   e.name.c_str(), r + 1, x.candidate.name.c_str(), x.predicted_reduction, x.achieved_reduction,
+                   x.kind_penalty, value);
+    }
+  }
+}
+
 struct Outcome {
   bool ran = false;
   bool flagged = false;
@@ -884,6 +909,8 @@ struct Args {
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
   int region_levels = CandidateOptions().region_levels;
+  double region_elements = CandidateOptions().region_elements;
+  double refit_function_tolerance = RankingOptions::default_refit_options().function_tolerance;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
@@ -900,13 +927,19 @@ void usage() {
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--region-levels N]\n"
+      "                    [--region-size X] [--refit-function-tolerance X]\n"
       "  --refits, --place-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
       "  RankingOptions::refits, place_refits, neighbour_refits, neighbour_rounds and\n"
       "  equal_kind_prior; --first-step-alternatives:\n"
       "  DiagnosisOptions::first_step_alternatives (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --region-levels: CandidateOptions::region_levels, the grids of block regions screened (the\n"
-      "  cases are drawn from the finest grid's whatever it is);\n"
+      "  cases are drawn from the finest grid's whatever it is); --region-size:\n"
+      "  CandidateOptions::region_elements, the finest regions' size in element sizes (the cases are\n"
+      "  drawn from regions of the default size whatever it is);\n"
+      "  --refit-function-tolerance: RankingOptions::refit.function_tolerance;\n"
+      "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
+      "  step's 40 best candidates and the 8 best of those that would count as right;\n"
       "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
       "  is then one core's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
@@ -984,6 +1017,13 @@ int main(int argc, char** argv) {
         std::string why;
         if (!candidates.IsValid(&why)) throw std::invalid_argument("--region-levels: " + why);
       }
+      else if (a == "--region-size") {
+        CandidateOptions candidates;
+        candidates.region_elements = args.region_elements = std::stod(next());
+        std::string why;
+        if (!candidates.IsValid(&why)) throw std::invalid_argument("--region-size: " + why);
+      }
+      else if (a == "--refit-function-tolerance") args.refit_function_tolerance = std::stod(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
@@ -1119,6 +1159,8 @@ int main(int argc, char** argv) {
           options.ranking.neighbour_rounds = args.neighbour_rounds;
           options.first_step_alternatives = args.first_step_alternatives;
           options.candidates.region_levels = args.region_levels;
+          options.candidates.region_elements = args.region_elements;
+          options.ranking.refit.function_tolerance = args.refit_function_tolerance;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);
@@ -1170,6 +1212,7 @@ int main(int argc, char** argv) {
             if (!matched) ++o.spurious;
           }
           o.all_found = !c.effects.empty() && std::all_of(found.begin(), found.end(), [](bool b) { return b; });
+          if (std::getenv("DIAGNOSIS_BENCHMARK_TRACE")) trace_right_candidates(ctx, c, d);
           if (!d.steps.empty()) {
             std::vector<const RankedEffect*> named = {&d.steps[0].effect};
             for (const RankedEffect& alt : d.steps[0].alternatives) named.push_back(&alt);
