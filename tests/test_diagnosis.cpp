@@ -598,6 +598,40 @@ TEST(EffectRanking, RefitsAtTheLooserLinearToleranceEndAtTheSameChiSquare) {
   EXPECT_NE(error.find("refit_linear_tolerance"), std::string::npos) << error;
 }
 
+TEST(EffectRanking, RefitsEndedByTheFunctionToleranceFitAsTheTightOnes) {
+  // The refits stop when an iteration lowers the chi-square by under 1e-3 of it: each ends within
+  // that of where a 1e-5 tolerance ends it, the same effect is best, and fewer forward solves are
+  // spent. The first calibration, from a user's start, keeps 1e-5 (L-BFGS creeps near its end).
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  auto ranked_at = [&](double tolerance) {
+    RankingOptions options;
+    options.neighbour_rounds = 0;
+    options.refit.function_tolerance = tolerance;
+    return rank_effects(problem, problem.truth_values(), candidates, options);
+  };
+  const EffectRanking tight = ranked_at(1e-5), loose = ranked_at(RankingOptions().refit.function_tolerance);
+  EXPECT_EQ(RankingOptions().refit.function_tolerance, 1e-3);
+  EXPECT_EQ(DiagnosisOptions().calibration.function_tolerance, 1e-5);
+  ASSERT_FALSE(tight.effects.empty());
+  ASSERT_FALSE(loose.effects.empty());
+  EXPECT_EQ(loose.effects.front().candidate.name, tight.effects.front().candidate.name);
+  int tight_solves = 0, loose_solves = 0, refits = 0;
+  for (const RankedEffect& t : tight.effects) {
+    if (!t.refitted) continue;
+    auto same = std::find_if(loose.effects.begin(), loose.effects.end(),
+                             [&](const RankedEffect& l) { return l.candidate.name == t.candidate.name; });
+    ASSERT_NE(same, loose.effects.end()) << t.candidate.name;
+    ASSERT_TRUE(same->refitted) << t.candidate.name;
+    EXPECT_NEAR(same->chi2_after, t.chi2_after, 1e-3 * t.chi2_after) << t.summary();
+    tight_solves += t.refit.forward_solves;
+    loose_solves += same->refit.forward_solves;
+    ++refits;
+  }
+  EXPECT_GE(refits, 3);
+  EXPECT_LT(loose_solves, tight_solves);
+}
+
 TEST(EffectRanking, AJointSoftenedFromNearRigidIsPredictedInItsCompliance) {
   // The model's joint holds y at 1e4, where it is near rigid (the modes hardly change from 1e4 to
   // 1e6); the truth's is 300. In log10 k the slope at 1e4 is small, the step stops on the range's

@@ -98,7 +98,7 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// up to a loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
-  /// tolerances (RankingOptions::default_refit_options).
+  /// tolerances (RankingOptions::default_refit_options), but for the function tolerance, 1e-5.
   ReducedOptions calibration = default_calibration_options();
   ResidualTestOptions test;
   bool localize = true;  ///< needs measured shapes; skipped (with a note) without

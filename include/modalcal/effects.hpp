@@ -233,7 +233,8 @@ struct MODALCAL_EXPORT RankingOptions {
   /// "Refits and significance"). Tolerances suit a
   /// noise-weighted misfit (values of the order of the number of data): the projected gradient in
   /// scaled variables to 1e-4, or 1e-8 of its start, or an iteration that lowers the misfit by at
-  /// most 1e-5 of it (a change of the chi-square below about 0.01); at most 60 iterations.
+  /// most 1e-3 of it (a change of the chi-square below about 0.4, a fiftieth of a critical
+  /// value); at most 60 iterations.
   ReducedOptions refit = default_refit_options();
   /// Deflated solves to 1e-8: the default 1e-11 buys nothing a ranking can see and costs more
   /// solves (docs/design.md, "Screen").

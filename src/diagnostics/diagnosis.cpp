@@ -102,6 +102,10 @@ std::string format_before_after(const Problem& after_problem, const FitState& be
 ReducedOptions DiagnosisOptions::default_calibration_options() {
   ReducedOptions options = RankingOptions::default_refit_options();
   options.method = ReducedOptions::Method::Lbfgs;
+  // L-BFGS lowers J by less per iteration than Gauss-Newton does near its minimum, so the
+  // refits' function tolerance would end it early: a change of the chi-square below about
+  // 0.01 (1e-5 of it) means nothing, and it starts every refit.
+  options.function_tolerance = 1e-5;
   return options;
 }
 
