@@ -621,11 +621,13 @@ TEST(EffectRanking, RefitsAtTheLooserLinearToleranceEndAtTheSameChiSquare) {
 TEST(EffectRanking, RefitsEndedByTheFunctionToleranceFitAsTheTightOnes) {
   // The refits stop when an iteration lowers the chi-square by under 1e-3 of it: each ends within
   // that of where a 1e-5 tolerance ends it, the same effect is best, and fewer forward solves are
-  // spent. The first calibration, from a user's start, keeps 1e-5 (L-BFGS creeps near its end).
+  // spent. The first calibration, from a user's start, keeps 1e-5 (L-BFGS creeps near its end),
+  // and so do the profiles of the uncertainty (their ends lie a few units of chi-square up).
   const EffectRanking tight = RankHiddenKrx([](RankingOptions* o) { o->refit.function_tolerance = 1e-5; });
   const EffectRanking loose = RankHiddenKrx([](RankingOptions*) {});
   EXPECT_EQ(RankingOptions().refit.function_tolerance, 1e-3);
   EXPECT_EQ(DiagnosisOptions().calibration.function_tolerance, 1e-5);
+  EXPECT_EQ(UncertaintyOptions().recalibration.function_tolerance, 1e-5);  // a profile's ends
   ASSERT_FALSE(tight.effects.empty());
   ASSERT_FALSE(loose.effects.empty());
   EXPECT_EQ(loose.effects.front().candidate.name, tight.effects.front().candidate.name);

@@ -53,7 +53,8 @@ struct MODALCAL_EXPORT UncertaintyOptions {
   /// Range: [1, 1000].
   int profile_steps = 16;
   /// The recalibrations along a profile and the likelihood's own minimum: Gauss-Newton with the
-  /// diagnosis' tolerances (a misfit of the order of the number of data).
+  /// diagnosis' refit tolerances (a misfit of the order of the number of data), but for the
+  /// function tolerance, 1e-5: an interval's ends lie a few units of chi-square up.
   ReducedOptions recalibration = default_recalibration_options();
   /// Returns false and names the field, its value and the violated condition.
   bool IsValid(std::string* error) const;

@@ -236,7 +236,14 @@ std::string format_value(double v) {
 }  // namespace
 
 // The same fits as the effect ranking's refits: a chi-square misfit, recalibrated from nearby.
-ReducedOptions UncertaintyOptions::default_recalibration_options() { return RankingOptions::default_refit_options(); }
+ReducedOptions UncertaintyOptions::default_recalibration_options() {
+  ReducedOptions options = RankingOptions::default_refit_options();
+  // A profile's interval ends where the chi-square has risen by a few units (3.84 at 95 %), so
+  // its recalibrations keep 1e-5 (a change below about 0.01), not the refits' 1e-3, which may
+  // leave a few tenths and move the ends.
+  options.function_tolerance = 1e-5;
+  return options;
+}
 
 bool UncertaintyOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& message) {
