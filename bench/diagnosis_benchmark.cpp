@@ -905,6 +905,7 @@ struct Args {
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
+  int kind_refits = RankingOptions().kind_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
@@ -924,12 +925,12 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
-      "                    [--mesh-check R] [--refits N] [--place-refits N] [--neighbour-refits N]\n"
+      "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--region-levels N]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
-      "  --refits, --place-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
-      "  RankingOptions::refits, place_refits, neighbour_refits, neighbour_rounds and\n"
+      "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
+      "  RankingOptions::refits, place_refits, kind_refits, neighbour_refits, neighbour_rounds and\n"
       "  equal_kind_prior; --first-step-alternatives:\n"
       "  DiagnosisOptions::first_step_alternatives (defaults: diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
@@ -1008,6 +1009,7 @@ int main(int argc, char** argv) {
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
+      else if (a == "--kind-refits") args.kind_refits = std::stoi(next());
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
       else if (a == "--neighbour-rounds") args.neighbour_rounds = std::stoi(next());
       else if (a == "--first-step-alternatives") args.first_step_alternatives = std::stoi(next());
@@ -1063,9 +1065,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d neighbours in up to %d rounds, %d other first steps, %d grids of regions%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d grids of regions%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.region_levels, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.region_levels, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1155,6 +1157,7 @@ int main(int argc, char** argv) {
           options.ranking.significance = args.significance;
           options.ranking.refits = args.refits;
           options.ranking.place_refits = args.place_refits;
+          options.ranking.kind_refits = args.kind_refits;
           options.ranking.neighbour_refits = args.neighbour_refits;
           options.ranking.neighbour_rounds = args.neighbour_rounds;
           options.first_step_alternatives = args.first_step_alternatives;

@@ -395,7 +395,7 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   EXPECT_EQ(best.kind_size, 1);  // j is the only joint: its krx is a kind of one, with no penalty
   const auto refitted = std::count_if(ranking.effects.begin(), ranking.effects.end(), [](const auto& r) { return r.refitted; });
   EXPECT_GE(refitted, RankingOptions().refits);
-  EXPECT_LE(refitted, RankingOptions().refits + RankingOptions().place_refits);
+  EXPECT_LE(refitted, RankingOptions().refits + RankingOptions().place_refits + RankingOptions().kind_refits);
   EXPECT_NE(format_effect_ranking(ranking).find("j.krx"), std::string::npos);
 }
 
@@ -435,6 +435,49 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
   std::string why;
   EXPECT_FALSE(bad.IsValid(&why));
   EXPECT_NE(why.find("place_refit_share"), std::string::npos);
+}
+
+// The refits beyond the best predictions go to other kinds of effect too, each kind's best, so
+// that other physics at one place (a support, the stiffness of the part it holds) is refitted
+// even when the best predictions are all one kind's variants.
+TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
+  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  Objective objective(problem);
+  const ReducedSummary calibration =
+      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
+  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  RankingOptions options;
+  options.refits = 1;
+  options.place_refits = options.kind_refits = options.neighbour_refits = 0;
+  options.kind_refit_share = 1e-3;  // any prediction qualifies: the kinds decide
+  const auto kind = [](const RankedEffect& r) {
+    return std::to_string(static_cast<int>(r.candidate.change.kind)) + " " + r.candidate.change.property;
+  };
+  const EffectRanking one = rank_effects(problem, calibration.final, candidates, options);
+  options.kind_refits = 2;
+  const EffectRanking three = rank_effects(problem, calibration.final, candidates, options);
+  std::vector<const RankedEffect*> chosen;
+  for (const RankedEffect& e : three.effects)
+    if (e.refitted) chosen.push_back(&e);
+  EXPECT_EQ(std::count_if(one.effects.begin(), one.effects.end(), [](const auto& r) { return r.refitted; }), 1);
+  ASSERT_EQ(chosen.size(), 3u);
+  for (size_t a = 0; a < chosen.size(); ++a) {
+    for (size_t b = a + 1; b < chosen.size(); ++b) EXPECT_NE(kind(*chosen[a]), kind(*chosen[b]));
+    for (const RankedEffect& e : three.effects) {  // the best prediction of its kind
+      if (kind(e) == kind(*chosen[a])) {
+        EXPECT_LE(e.predicted_reduction, chosen[a]->predicted_reduction) << e.candidate.name;
+      }
+    }
+  }
+  RankingOptions bad;
+  bad.kind_refit_share = 1.5;
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("kind_refit_share"), std::string::npos);
+  bad = RankingOptions();
+  bad.kind_refits = -1;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("kind_refits"), std::string::npos);
 }
 
 // Two refits of one ranking, compared where no sensor is: a refit against itself differs

@@ -211,6 +211,14 @@ struct MODALCAL_EXPORT RankingOptions {
   int place_refits = 2;
   /// Range: (0, 1].
   double place_refit_share = 0.7;
+  /// Further refits for other physics: the best-scored candidate of each kind that no candidate
+  /// chosen before has, best score first, while its prediction is at least `kind_refit_share` of
+  /// the best one's. Different physics at one place (a support's flexibility, the stiffness of
+  /// the part it holds) predict alike to first order; the refits above, chosen by score, can all
+  /// go to one kind's variants of one place. Range: >= 0.
+  int kind_refits = 4;
+  /// Range: (0, 1].
+  double kind_refit_share = 0.8;
   /// Refits of the best refit's neighbours (its kind, within its neighbourhood), best predicted
   /// first, after the refits above; as many again for each other kind's best refit that scores
   /// within the critical value of it. The choice above refits one candidate per neighbourhood,

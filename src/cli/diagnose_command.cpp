@@ -30,6 +30,7 @@ struct DiagnoseArgs {
   double refine = 0;
   int refits = RankingOptions().refits;
   int place_refits = RankingOptions().place_refits;
+  int kind_refits = RankingOptions().kind_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   double significance = ResidualTestOptions().significance;
@@ -403,6 +404,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;
   options.ranking.place_refits = args.place_refits;
+  options.ranking.kind_refits = args.kind_refits;
   options.ranking.neighbour_refits = args.neighbour_refits;
   options.ranking.neighbour_rounds = args.neighbour_rounds;
   options.ranking.significance = args.significance;
@@ -532,6 +534,9 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(non_negative_number());
   cmd->add_option("--place-refits", args->place_refits,
                   "then refit this many more, each the best-predicted effect apart from those chosen (default 2)")
+      ->check(non_negative_number());
+  cmd->add_option("--kind-refits", args->kind_refits,
+                  "then refit this many more, each the best of a kind of effect not chosen yet (default 4)")
       ->check(non_negative_number());
   cmd->add_option("--neighbour-refits", args->neighbour_refits,
                   "then refit this many of the best refit's neighbours, the same effect a node or two away "

@@ -10,6 +10,7 @@
 #include <map>
 #include <numeric>
 #include <optional>
+#include <set>
 #include <stdexcept>
 
 #include "modalcal/effects.hpp"
@@ -158,6 +159,24 @@ void add_place_refits(const Model& model, const std::vector<RankedEffect>& scree
     places.push_back(*at);
     ++added;
   }
+}
+
+/// Adds to `chosen` the best candidate of up to RankingOptions::kind_refits kinds that no
+/// candidate in it has, best score first, with a prediction at least kind_refit_share of the
+/// best. A kind's candidates share its penalty, so its best score is its best prediction.
+void add_kind_refits(const std::vector<RankedEffect>& screened, const RankingOptions& options,
+                     std::vector<size_t>* chosen) {
+  if (screened.empty() || options.kind_refits == 0) return;
+  const double least = options.kind_refit_share * screened.front().predicted_reduction;
+  std::set<std::string> kinds;
+  for (size_t c : *chosen) kinds.insert(kind_of(screened[c].candidate));
+  std::vector<size_t> best_of_kinds;
+  for (size_t k = 0; k < screened.size() && screened[k].predicted_reduction >= least; ++k)
+    if (kinds.insert(kind_of(screened[k].candidate)).second) best_of_kinds.push_back(k);
+  std::stable_sort(best_of_kinds.begin(), best_of_kinds.end(),
+                   [&](size_t a, size_t b) { return screened[a].score() > screened[b].score(); });
+  const size_t count = std::min(best_of_kinds.size(), static_cast<size_t>(options.kind_refits));
+  chosen->insert(chosen->end(), best_of_kinds.begin(), best_of_kinds.begin() + static_cast<std::ptrdiff_t>(count));
 }
 
 /// One refit (every calibration parameter free, the effect started at its first-order value or
@@ -521,12 +540,13 @@ void climb_neighbours(const Problem& problem, const RankingOptions& options, con
   }
 }
 
-/// Refits of the best predictions (refit_choices, add_place_refits), then of the best refits'
-/// neighbours (climb_neighbours), each judged by its likelihood-ratio test.
+/// Refits of the best predictions (refit_choices, add_place_refits, add_kind_refits), then of
+/// the best refits' neighbours (climb_neighbours), each judged by its likelihood-ratio test.
 void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
                 std::vector<RankedEffect>* screened) {
   std::vector<size_t> choices = refit_choices(*screened, options.refits);
   add_place_refits(problem.model, *screened, options, &choices);
+  add_kind_refits(*screened, options, &choices);
   refit_chosen(problem, options, ranking, choices, screened);
   climb_neighbours(problem, options, ranking, screened);
 }
@@ -599,6 +619,9 @@ bool RankingOptions::IsValid(std::string* error) const {
   if (neighbour_rounds < 0) return bad("neighbour_rounds = " + detail::option_text(neighbour_rounds) + ": must be >= 0");
   if (!(place_refit_share > 0 && place_refit_share <= 1))
     return bad("place_refit_share = " + detail::option_text(place_refit_share) + ": must be in (0, 1]");
+  if (kind_refits < 0) return bad("kind_refits = " + detail::option_text(kind_refits) + ": must be >= 0");
+  if (!(kind_refit_share > 0 && kind_refit_share <= 1))
+    return bad("kind_refit_share = " + detail::option_text(kind_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
     return bad("significance = " + detail::option_text(significance) + ": must be in (0, 0.5)");
   if (!(refit_linear_tolerance > 0 && refit_linear_tolerance <= 1e-4))
