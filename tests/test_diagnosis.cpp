@@ -399,14 +399,26 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   EXPECT_NE(format_effect_ranking(ranking).find("j.krx"), std::string::npos);
 }
 
+/// The refit-choice tests' setup: the hidden-krx problem (j.krx = 20, noise-weighted), calibrated
+/// from its truth values, and its generated candidates.
+struct CalibratedKrx {
+  Problem problem;
+  Vector calibrated;
+  std::vector<EffectCandidate> candidates;
+};
+CalibratedKrx CalibrateHiddenKrx() {
+  CalibratedKrx krx{noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1}), {}, {}};
+  Objective objective(krx.problem);
+  krx.calibrated =
+      minimize_reduced(objective, krx.problem.truth_values(), DiagnosisOptions::default_calibration_options()).final;
+  krx.candidates = generate_candidates(krx.problem);
+  return krx;
+}
+
 // The refits beyond the best predictions go to places apart from those already refitted, so that
 // a hypothesis elsewhere (a symmetric structure's mirror part) gets its refit too.
 TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
-  Objective objective(problem);
-  const ReducedSummary calibration =
-      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
-  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  const CalibratedKrx krx = CalibrateHiddenKrx();
   RankingOptions options;
   options.refits = 1;
   options.place_refits = 0;
@@ -416,17 +428,17 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
       if (e.refitted) out.push_back(&e);
     return out;
   };
-  ASSERT_EQ(refitted(rank_effects(problem, calibration.final, candidates, options)).size(), 1u);
+  ASSERT_EQ(refitted(rank_effects(krx.problem, krx.calibrated, krx.candidates, options)).size(), 1u);
   options.place_refits = 2;
   options.place_refit_share = 1e-3;  // any prediction qualifies: the places decide
-  const EffectRanking ranking = rank_effects(problem, calibration.final, candidates, options);
+  const EffectRanking ranking = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
   const std::vector<const RankedEffect*> chosen = refitted(ranking);
   ASSERT_EQ(chosen.size(), 3u);
   const double apart = std::sqrt(3.25 * 3.25 + 1 + 1.5 * 1.5) / 4;  // a quarter of the model's size
   for (size_t a = 0; a < chosen.size(); ++a)
     for (size_t b = a + 1; b < chosen.size(); ++b) {
-      const std::optional<Vec3> pa = effect_place(problem.model, chosen[a]->candidate),
-                                pb = effect_place(problem.model, chosen[b]->candidate);
+      const std::optional<Vec3> pa = effect_place(krx.problem.model, chosen[a]->candidate),
+                                pb = effect_place(krx.problem.model, chosen[b]->candidate);
       ASSERT_TRUE(pa && pb);
       EXPECT_GT((*pa - *pb).norm(), apart) << chosen[a]->candidate.name << " and " << chosen[b]->candidate.name;
     }
@@ -441,11 +453,7 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
 // that other physics at one place (a support, the stiffness of the part it holds) is refitted
 // even when the best predictions are all one kind's variants.
 TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
-  Objective objective(problem);
-  const ReducedSummary calibration =
-      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
-  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
+  const CalibratedKrx krx = CalibrateHiddenKrx();
   RankingOptions options;
   options.refits = 1;
   options.place_refits = options.kind_refits = options.neighbour_refits = 0;
@@ -453,9 +461,9 @@ TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
   const auto kind = [](const RankedEffect& r) {
     return std::to_string(static_cast<int>(r.candidate.change.kind)) + " " + r.candidate.change.property;
   };
-  const EffectRanking one = rank_effects(problem, calibration.final, candidates, options);
+  const EffectRanking one = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
   options.kind_refits = 2;
-  const EffectRanking three = rank_effects(problem, calibration.final, candidates, options);
+  const EffectRanking three = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
   std::vector<const RankedEffect*> chosen;
   for (const RankedEffect& e : three.effects)
     if (e.refitted) chosen.push_back(&e);
