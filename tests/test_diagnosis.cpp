@@ -310,10 +310,40 @@ TEST(ChiSquare, CriticalValuesAndNoiseWeights) {
   EXPECT_THROW(noise_weighted(problem, MeasurementNoise{0, 0.02, 1}), std::invalid_argument);
 }
 
+/// The effect-ranking tests' problem: a joint's krx hidden (20), the noise stated.
+Problem HiddenKrxProblem() { return noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1}); }
+
+/// HiddenKrxProblem() calibrated from its truth values, and its generated candidates.
+struct CalibratedKrx {
+  Problem problem = HiddenKrxProblem();
+  Vector calibrated;
+  std::vector<EffectCandidate> candidates;
+};
+CalibratedKrx CalibrateHiddenKrx() {
+  CalibratedKrx krx;
+  Objective objective(krx.problem);
+  krx.calibrated =
+      minimize_reduced(objective, krx.problem.truth_values(), DiagnosisOptions::default_calibration_options()).final;
+  krx.candidates = generate_candidates(krx.problem);
+  return krx;
+}
+
+/// Whether two ranked effects are of one kind: the change's kind and property, except that added
+/// point masses and regions' mass scales are one kind, mass at a place.
+bool SameKind(const RankedEffect& a, const RankedEffect& b) {
+  const auto local_mass = [](const RankedEffect& r) {
+    const ModelChange& c = r.candidate.change;
+    return (c.kind == ModelChange::Kind::AddPointMass && c.property == "mass") ||
+           (c.kind == ModelChange::Kind::AddRegion && c.property == "mass_scale");
+  };
+  if (local_mass(a) || local_mass(b)) return local_mass(a) && local_mass(b);
+  return a.candidate.change.kind == b.candidate.change.kind && a.candidate.change.property == b.candidate.change.property;
+}
+
 TEST(EffectRanking, ACandidateThatDoesNotApplyIsSetAsideAndTheRestScreened) {
   // The screen applies every candidate at once; one that does not apply to the model (here one
   // naming a block the model lacks) must not sink the others: it is set aside with the reason.
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  const Problem problem = HiddenKrxProblem();
   std::vector<EffectCandidate> candidates = generate_candidates(problem);
   EffectCandidate stray = candidates.front();
   stray.name = "no_such_block.stiffness_scale";
@@ -332,13 +362,11 @@ TEST(EffectRanking, ACandidateThatDoesNotApplyIsSetAsideAndTheRestScreened) {
 }
 
 TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
-  Objective objective(problem);
-  const ReducedSummary calibration =
-      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
-  ASSERT_EQ(calibration.final.size(), 3);
-  const std::vector<EffectCandidate> candidates = generate_candidates(problem);
-  const EffectRanking ranking = rank_effects(problem, calibration.final, candidates);
+  const CalibratedKrx krx = CalibrateHiddenKrx();
+  const Problem& problem = krx.problem;
+  const std::vector<EffectCandidate>& candidates = krx.candidates;
+  ASSERT_EQ(krx.calibrated.size(), 3);
+  const EffectRanking ranking = rank_effects(problem, krx.calibrated, candidates);
   ASSERT_GE(ranking.effects.size(), 3u);
   EXPECT_TRUE(ranking.noise_known);
   EXPECT_GT(ranking.chi2_before, 10 * ranking.dof_before);
@@ -375,18 +403,8 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
       EXPECT_GE(a.predicted_reduction, b.predicted_reduction);
     }
   }
-  // A kind: the change's kind and property; added point masses and regions' mass scales are one,
-  // mass at a place.
-  const auto local_mass = [](const RankedEffect& r) {
-    const ModelChange& c = r.candidate.change;
-    return (c.kind == ModelChange::Kind::AddPointMass && c.property == "mass") ||
-           (c.kind == ModelChange::Kind::AddRegion && c.property == "mass_scale");
-  };
   const auto of_kind = [&](const RankedEffect& r) {
-    return std::count_if(ranking.effects.begin(), ranking.effects.end(), [&](const RankedEffect& o) {
-      if (local_mass(r) || local_mass(o)) return local_mass(r) && local_mass(o);
-      return o.candidate.change.kind == r.candidate.change.kind && o.candidate.change.property == r.candidate.change.property;
-    });
+    return std::count_if(ranking.effects.begin(), ranking.effects.end(), [&](const RankedEffect& o) { return SameKind(r, o); });
   };
   for (const RankedEffect& r : ranking.effects) {
     EXPECT_EQ(r.kind_size, of_kind(r)) << r.candidate.name;
@@ -397,22 +415,6 @@ TEST(EffectRanking, ScreenAndRefitFindAHiddenRotationalStiffness) {
   EXPECT_GE(refitted, RankingOptions().refits);
   EXPECT_LE(refitted, RankingOptions().refits + RankingOptions().place_refits + RankingOptions().kind_refits);
   EXPECT_NE(format_effect_ranking(ranking).find("j.krx"), std::string::npos);
-}
-
-/// The refit-choice tests' setup: the hidden-krx problem (j.krx = 20, noise-weighted), calibrated
-/// from its truth values, and its generated candidates.
-struct CalibratedKrx {
-  Problem problem;
-  Vector calibrated;
-  std::vector<EffectCandidate> candidates;
-};
-CalibratedKrx CalibrateHiddenKrx() {
-  CalibratedKrx krx{noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1}), {}, {}};
-  Objective objective(krx.problem);
-  krx.calibrated =
-      minimize_reduced(objective, krx.problem.truth_values(), DiagnosisOptions::default_calibration_options()).final;
-  krx.candidates = generate_candidates(krx.problem);
-  return krx;
 }
 
 // The refits beyond the best predictions go to places apart from those already refitted, so that
@@ -458,9 +460,6 @@ TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
   options.refits = 1;
   options.place_refits = options.kind_refits = options.neighbour_refits = 0;
   options.kind_refit_share = 1e-3;  // any prediction qualifies: the kinds decide
-  const auto kind = [](const RankedEffect& r) {
-    return std::to_string(static_cast<int>(r.candidate.change.kind)) + " " + r.candidate.change.property;
-  };
   const EffectRanking one = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
   options.kind_refits = 2;
   const EffectRanking three = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
@@ -470,9 +469,9 @@ TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
   EXPECT_EQ(std::count_if(one.effects.begin(), one.effects.end(), [](const auto& r) { return r.refitted; }), 1);
   ASSERT_EQ(chosen.size(), 3u);
   for (size_t a = 0; a < chosen.size(); ++a) {
-    for (size_t b = a + 1; b < chosen.size(); ++b) EXPECT_NE(kind(*chosen[a]), kind(*chosen[b]));
+    for (size_t b = a + 1; b < chosen.size(); ++b) EXPECT_FALSE(SameKind(*chosen[a], *chosen[b]));
     for (const RankedEffect& e : three.effects) {  // the best prediction of its kind
-      if (kind(e) == kind(*chosen[a])) {
+      if (SameKind(e, *chosen[a])) {
         EXPECT_LE(e.predicted_reduction, chosen[a]->predicted_reduction) << e.candidate.name;
       }
     }
@@ -492,11 +491,9 @@ TEST(EffectRanking, FurtherRefitsGoToOtherKinds) {
 // nowhere; two different effects differ at some surface reading and in some unmeasured mode,
 // in units of the stated noise (half the noise, twice the separation).
 TEST(TellApart, NamesTheReadingAndTheModeWhereTwoRefitsDiffer) {
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
-  Objective objective(problem);
-  const ReducedSummary calibration =
-      minimize_reduced(objective, problem.truth_values(), DiagnosisOptions::default_calibration_options());
-  const EffectRanking ranking = rank_effects(problem, calibration.final, generate_candidates(problem));
+  const CalibratedKrx krx = CalibrateHiddenKrx();
+  const Problem& problem = krx.problem;
+  const EffectRanking ranking = rank_effects(problem, krx.calibrated, krx.candidates);
   ASSERT_TRUE(ranking.effects.size() >= 2 && ranking.effects[0].refitted && ranking.effects[1].refitted);
   const RankedEffect &a = ranking.effects[0], &b = ranking.effects[1];
 
@@ -646,7 +643,7 @@ RefitCosts CompareRefits(const EffectRanking& tight, const EffectRanking& loose,
 /// The two refit-tolerance tests' ranking: a joint's krx hidden, the noise stated, no neighbour
 /// rounds, and `set` applied to the options.
 EffectRanking RankHiddenKrx(const std::function<void(RankingOptions*)>& set) {
-  const Problem problem = noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1});
+  const Problem problem = HiddenKrxProblem();
   RankingOptions options;
   options.neighbour_rounds = 0;
   set(&options);
