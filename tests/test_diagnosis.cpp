@@ -1200,6 +1200,9 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_TRUE(d.discretization->corrected) << report;
   EXPECT_LT(d.discretization->score_corrected, d.discretization->score_as_measured) << report;
+  // The loop on the data as measured ended above the corrected one's end with its first path: its
+  // other paths, which could only have lowered it further, were not walked.
+  EXPECT_TRUE(d.discretization->other_data_first_path_only) << report;
   for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode)
     EXPECT_LT(m.shift_percent, 0) << m.label << ": a finer mesh is more flexible\n" << report;
   EXPECT_TRUE(d.steps.empty()) << report;
@@ -1219,6 +1222,10 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_FALSE(d.discretization->corrected) << report;
   EXPECT_LT(d.discretization->score_as_measured, d.discretization->score_corrected) << report;
+  // The corrected data's first path took three steps and ended above the loop on the data as
+  // measured: its other paths were not walked, and the report says so.
+  EXPECT_TRUE(d.discretization->other_data_first_path_only) << report;
+  EXPECT_NE(report.find("the loop on the corrected data walked its first path only"), std::string::npos) << report;
   EXPECT_EQ(d.accepted(), std::vector<std::string>{"pad.stiffness_scale"}) << report;
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;

@@ -210,6 +210,10 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   /// corrected data could not run (the data as measured are then kept).
   double score_corrected = NAN, score_as_measured = NAN;
   bool corrected = false;     ///< the loop ran on the corrected data (and its end was kept)
+  /// The data not kept had only their loop's first path walked (DiagnosisOptions::
+  /// first_step_alternatives): it ended above the other loop's end, and the other paths only
+  /// replace a path by one that ends lower; its score is that first path's.
+  bool other_data_first_path_only = false;
 };
 
 /// An accepted effect the backward pass removed: one the others make redundant, or one that

@@ -225,7 +225,8 @@ nlohmann::json discretization_json(const Diagnosis& d) {
           {"chi2_explained", est.chi2_explained}, {"critical_value", est.critical_value},
           {"significant", est.significant},       {"corrected", est.corrected},
           {"score_corrected", json_number(est.score_corrected)},
-          {"score_as_measured", json_number(est.score_as_measured)}};
+          {"score_as_measured", json_number(est.score_as_measured)},
+          {"other_data_first_path_only", est.other_data_first_path_only}};
 }
 
 /// The stepwise loop: forward steps, exchanges, what was kept and dropped, the residual at the end.

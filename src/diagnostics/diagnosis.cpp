@@ -816,26 +816,46 @@ void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagn
   d->paths = std::move(paths);
 }
 
-/// The loop on `fitted` from d's calibration: the forward steps, the exchange and the backward
-/// pass, with the first step's localization and map. When that path took two or more steps or
-/// ended with a residual larger than the noise, the loop is walked again from each of the first
-/// ranking's next-best effects (walk_other_paths): with several effects at once the best single
-/// effect may stand in for them together, and no later step or exchange then leaves it.
-void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
-  const Vector calibrated = d->calibration.final;
-  localize(problem, calibrated, options, d);
+/// A loop between its first path and the others: where it started and the screens it ran, which
+/// the other paths take again where they reach a model screened before.
+struct Loop {
+  Problem fitted;
+  LoopState start;
+  Diagnosis before_the_loop;
+  ScreenMemo memo;
+};
+
+/// The loop's first path on `fitted` from d's calibration: the forward steps, the exchange and the
+/// backward pass, with the first step's localization and map.
+Loop walk_first_path(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  localize(problem, d->calibration.final, options, d);
   d->started_with = enabled_candidates(problem, options.candidates);
   d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
-  const LoopState start = starting_state(fitted, d->started_with, calibrated, options);
-  if (!d->started_with.empty()) d->before = start.fit;
-  const Diagnosis before_the_loop = *d;
-  ScreenMemo memo;
-  walk(fitted, start, 0, options, &memo, d);
+  Loop loop{fitted, starting_state(fitted, d->started_with, d->calibration.final, options), {}, {}};
+  if (!d->started_with.empty()) d->before = loop.start.fit;
+  loop.before_the_loop = *d;
+  walk(loop.fitted, loop.start, 0, options, &loop.memo, d);
   d->ranking = d->rankings.front();
   d->map = screen_map(problem.model, d->ranking);
-  walk_other_paths(fitted, start, before_the_loop, options, &memo, d);
-  d->screens = memo.screened();
-  d->screens_reused = memo.reused();
+  d->screens = loop.memo.screened();
+  d->screens_reused = loop.memo.reused();
+  return loop;
+}
+
+/// The loop's other paths: when its first path took two or more steps or ended with a residual
+/// larger than the noise, the loop is walked again from each of the first ranking's next-best
+/// effects (walk_other_paths): with several effects at once the best single effect may stand in
+/// for them together, and no later step or exchange then leaves it.
+void walk_other_paths(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
+  walk_other_paths(loop->fitted, loop->start, loop->before_the_loop, options, &loop->memo, d);
+  d->screens = loop->memo.screened();
+  d->screens_reused = loop->memo.reused();
+}
+
+/// The whole loop on `fitted` from d's calibration: its first path, then the others.
+void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  Loop loop = walk_first_path(problem, fitted, options, d);
+  walk_other_paths(&loop, options, d);
 }
 
 /// -2 ln L at the end of d's loop on `data` (unweighted, with a stated noise), up to a constant
@@ -851,24 +871,39 @@ double loop_score(const Problem& data, const Diagnosis& d) {
 
 /// The loop on the data corrected for the mesh (`corrected`, from check_the_mesh()) and on the
 /// data as measured; d becomes the one whose end scores lower, the data as measured on a tie or
-/// when the corrected data's loop cannot run (its score is then NaN).
+/// when the corrected data's loop cannot run (its score is then NaN). The other paths, the most
+/// of a loop's cost, are walked first for the data whose first path ends lower; for the other
+/// data only when their first path ends lower still than that loop's end: other paths replace a
+/// path only by one that ends lower, so the data whose first path ends higher are the ones the
+/// comparison keeps unless their other paths gain more than the difference.
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
-  run_loop(problem, weighted_if(d->noise_known, problem), options, &as_measured);
-  double score_corrected = NAN;
+  Loop measured_loop = walk_first_path(problem, weighted_if(d->noise_known, problem), options, &as_measured);
+  std::optional<Loop> corrected_loop;
   try {  // a loop on the corrected data that cannot run leaves the one on the data as measured
     const Problem fitted = weighted_if(d->noise_known, corrected.first);
     calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
-    run_loop(problem, fitted, options, d);
-    score_corrected = loop_score(corrected.first, *d);
+    corrected_loop = walk_first_path(problem, fitted, options, d);
   } catch (const std::runtime_error&) {
   }
-  const double score_as_measured = loop_score(problem, as_measured);
-  if (!(score_corrected < score_as_measured)) *d = std::move(as_measured);
-  d->discretization->corrected = score_corrected < score_as_measured;
-  d->discretization->score_corrected = score_corrected;
-  d->discretization->score_as_measured = score_as_measured;
+  auto score_corrected = [&] { return corrected_loop ? loop_score(corrected.first, *d) : NAN; };
+  auto score_as_measured = [&] { return loop_score(problem, as_measured); };
+  const bool corrected_first = score_corrected() < score_as_measured();
+  Loop* first_loop = corrected_first ? &*corrected_loop : &measured_loop;
+  Loop* second_loop = corrected_first ? &measured_loop : corrected_loop ? &*corrected_loop : nullptr;
+  Diagnosis* first = corrected_first ? d : &as_measured;
+  Diagnosis* second = corrected_first ? &as_measured : d;
+  auto score_of = [&](const Diagnosis* x) { return x == d ? score_corrected() : score_as_measured(); };
+  walk_other_paths(first_loop, options, first);
+  const bool walk_both = second_loop && score_of(second) < score_of(first);
+  if (walk_both) walk_other_paths(second_loop, options, second);
+  const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
+  if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
+  d->discretization->corrected = corrected_score < as_measured_score;
+  d->discretization->score_corrected = corrected_score;
+  d->discretization->score_as_measured = as_measured_score;
+  d->discretization->other_data_first_path_only = second_loop && !walk_both;
 }
 
 /// An effect to start from given twice is the caller's mistake: said before the first calibration,
@@ -977,6 +1012,9 @@ std::string format_discretization(const DiscretizationEstimate& est) {
                   "measured; the diagnosis below is of the data %s\n",
                   est.score_corrected, est.score_as_measured, est.corrected ? "corrected" : "as measured");
     text += line;
+    if (est.other_data_first_path_only)
+      text += std::string("  the loop on ") + (est.corrected ? "the data as measured" : "the corrected data") +
+              " walked its first path only: that ended higher than the other loop's end\n";
   }
   return text;
 }
