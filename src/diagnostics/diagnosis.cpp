@@ -259,12 +259,14 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
 }
 
 /// How a further measurement would tell the step's effect from each alternative (with a stated
-/// noise). Advice only: when even the accepted effect's model cannot be solved, every entry names
-/// no reading and no mode.
-void add_tell_apart(const Problem& problem, DiagnosisStep* step) {
-  if (!problem.measurement_noise || step->alternatives.empty()) return;
+/// noise), on `fitted` with `effects` (at `values`), the model before the step. Advice only: when
+/// even the accepted effect's model cannot be made or solved, every entry names no reading and no
+/// mode.
+void add_tell_apart(const Problem& fitted, const std::vector<EffectCandidate>& effects,
+                    const std::vector<double>& values, DiagnosisStep* step) {
+  if (!fitted.measurement_noise || step->alternatives.empty()) return;
   try {
-    step->tell_apart = tell_apart(problem, step->effect, step->alternatives);
+    step->tell_apart = tell_apart(problem_with_effects(fitted, effects, values), step->effect, step->alternatives);
   } catch (const std::exception&) {
     for (const RankedEffect& alternative : step->alternatives) {
       TellApart none;
@@ -325,7 +327,6 @@ void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& 
                    Diagnosis* d) {
   const EffectRanking& ranking = d->rankings.back();
   d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1, index));
-  add_tell_apart(state->problem, &d->steps.back());
   std::vector<EffectCandidate> effects = state->effects;
   effects.push_back(ranking.effects[index].candidate);
   *state = make_state(fitted, effects, ranking.effects[index].parameters, options.test);
@@ -816,6 +817,19 @@ void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagn
   d->paths = std::move(paths);
 }
 
+/// Each step's advice on telling its effect from the alternatives (add_tell_apart), on the model
+/// as it stood before the step: the effects the loop started with and the earlier steps'. Given
+/// once the diagnosis has chosen its path, as only that path's steps are reported.
+void advise_measurements(const Problem& fitted, Diagnosis* d) {
+  std::vector<EffectCandidate> effects = d->started_with;
+  const size_t np = fitted.parameters.size();
+  for (DiagnosisStep& step : d->steps) {
+    const Vector& p = step.effect.parameters;  // the parameters before the step, then its effect's value
+    add_tell_apart(fitted, effects, std::vector<double>(p.data() + np, p.data() + p.size() - 1), &step);
+    effects.push_back(step.effect.candidate);
+  }
+}
+
 /// A loop between its first path and the others: where it started and the screens it ran, which
 /// the other paths take again where they reach a model screened before.
 struct Loop {
@@ -856,6 +870,7 @@ void walk_other_paths(Loop* loop, const DiagnosisOptions& options, Diagnosis* d)
 void run_loop(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
   Loop loop = walk_first_path(problem, fitted, options, d);
   walk_other_paths(&loop, options, d);
+  advise_measurements(fitted, d);
 }
 
 /// -2 ln L at the end of d's loop on `data` (unweighted, with a stated noise), up to a constant
@@ -899,7 +914,9 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   const bool walk_both = second_loop && score_of(second) < score_of(first);
   if (walk_both) walk_other_paths(second_loop, options, second);
   const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
+  const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop.fitted;
   if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
+  advise_measurements(kept_fitted, d);
   d->discretization->corrected = corrected_score < as_measured_score;
   d->discretization->score_corrected = corrected_score;
   d->discretization->score_as_measured = as_measured_score;
