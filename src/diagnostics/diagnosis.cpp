@@ -904,15 +904,27 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   }
   auto score_corrected = [&] { return corrected_loop ? loop_score(corrected.first, *d) : NAN; };
   auto score_as_measured = [&] { return loop_score(problem, as_measured); };
-  const bool corrected_first = score_corrected() < score_as_measured();
-  Loop* first_loop = corrected_first ? &*corrected_loop : &measured_loop;
-  Loop* second_loop = corrected_first ? &measured_loop : corrected_loop ? &*corrected_loop : nullptr;
-  Diagnosis* first = corrected_first ? d : &as_measured;
-  Diagnosis* second = corrected_first ? &as_measured : d;
-  auto score_of = [&](const Diagnosis* x) { return x == d ? score_corrected() : score_as_measured(); };
-  walk_other_paths(first_loop, options, first);
-  const bool walk_both = second_loop && score_of(second) < score_of(first);
-  if (walk_both) walk_other_paths(second_loop, options, second);
+  auto walk_corrected = [&] {  // as above: a failure leaves the data as measured
+    try {
+      walk_other_paths(&*corrected_loop, options, d);
+    } catch (const std::runtime_error&) {
+      corrected_loop.reset();
+    }
+  };
+  bool both_walked = true;
+  if (score_corrected() < score_as_measured()) {
+    walk_corrected();
+    if (score_corrected() < score_as_measured())
+      both_walked = false;
+    else
+      walk_other_paths(&measured_loop, options, &as_measured);
+  } else {
+    walk_other_paths(&measured_loop, options, &as_measured);
+    if (!(score_corrected() < score_as_measured()))
+      both_walked = !corrected_loop;
+    else
+      walk_corrected();
+  }
   const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
   const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop.fitted;
   if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
@@ -920,7 +932,7 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   d->discretization->corrected = corrected_score < as_measured_score;
   d->discretization->score_corrected = corrected_score;
   d->discretization->score_as_measured = as_measured_score;
-  d->discretization->other_data_first_path_only = second_loop && !walk_both;
+  d->discretization->other_data_first_path_only = !both_walked;
 }
 
 /// An effect to start from given twice is the caller's mistake: said before the first calibration,
