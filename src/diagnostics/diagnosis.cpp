@@ -888,9 +888,9 @@ double loop_score(const Problem& data, const Diagnosis& d) {
 /// data as measured; d becomes the one whose end scores lower, the data as measured on a tie or
 /// when the corrected data's loop cannot run (its score is then NaN). The other paths, the most
 /// of a loop's cost, are walked first for the data whose first path ends lower; for the other
-/// data only when their first path ends lower still than that loop's end: other paths replace a
-/// path only by one that ends lower, so the data whose first path ends higher are the ones the
-/// comparison keeps unless their other paths gain more than the difference.
+/// data only when their first path ends lower still than that loop's end. Other paths replace a
+/// path only by one that ends lower, so what this gives up is the other data's paths gaining more
+/// than the two ends differ by (measured: docs/design.md, "The mesh's share").
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
