@@ -911,20 +911,12 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
       corrected_loop.reset();
     }
   };
-  bool both_walked = true;
-  if (score_corrected() < score_as_measured()) {
-    walk_corrected();
-    if (score_corrected() < score_as_measured())
-      both_walked = false;
-    else
-      walk_other_paths(&measured_loop, options, &as_measured);
-  } else {
-    walk_other_paths(&measured_loop, options, &as_measured);
-    if (!(score_corrected() < score_as_measured()))
-      both_walked = !corrected_loop;
-    else
-      walk_corrected();
-  }
+  auto walk_measured = [&] { walk_other_paths(&measured_loop, options, &as_measured); };
+  const bool corrected_first = score_corrected() < score_as_measured();
+  corrected_first ? walk_corrected() : walk_measured();
+  // The other data's first path ends lower than the end just walked (or the corrected loop failed).
+  const bool other_leads = (score_corrected() < score_as_measured()) != corrected_first;
+  if (other_leads) corrected_first ? walk_measured() : walk_corrected();
   const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
   const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop.fitted;
   if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
@@ -932,7 +924,7 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   d->discretization->corrected = corrected_score < as_measured_score;
   d->discretization->score_corrected = corrected_score;
   d->discretization->score_as_measured = as_measured_score;
-  d->discretization->other_data_first_path_only = !both_walked;
+  d->discretization->other_data_first_path_only = corrected_loop && !other_leads;
 }
 
 /// An effect to start from given twice is the caller's mistake: said before the first calibration,
