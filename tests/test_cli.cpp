@@ -397,6 +397,7 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
     EXPECT_TRUE(step.contains(key)) << key;
   for (const auto& a : step["alternatives"]) {
     ASSERT_TRUE(a.contains("tell_apart")) << a.dump();
+    ASSERT_TRUE(a.contains("prior_overruled") && a["prior_overruled"].is_boolean()) << a.dump();
     const auto& reading = a["tell_apart"]["reading"];
     if (!reading.is_null()) {
       for (const char* key : {"node", "location", "direction", "measured_mode", "separation"})

@@ -850,6 +850,41 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
   EXPECT_GE(d.screens, static_cast<int>(d.rankings.size())) << report;
 }
 
+TEST(Diagnosis, AStepSaysWhenThePriorOverKindsChoseAgainstTheData) {
+  // A column's mass scale accepted over a point mass that fits better by 9.8 in chi-square (a
+  // likelihood ratio of 134 : 1): the prior (one of 3 block mass scales against one of 1,000
+  // places) chose. The text must say so, not that the data hardly tell them apart; an
+  // alternative within 6 still reads "hardly tell".
+  auto refit = [](const std::string& name, double statistic, double kind_size) {
+    RankedEffect r;
+    r.candidate.name = name;
+    r.refitted = r.significant = true;
+    r.statistic = r.achieved_reduction = statistic;
+    r.chi2_after = 2727 - statistic;
+    r.kind_penalty = 2 * std::log(kind_size);
+    r.value = 1;
+    return r;
+  };
+  DiagnosisStep step;
+  step.step = 1;
+  step.chi2_before = 2727;
+  step.critical_value = 21;
+  step.screened = 2000;
+  step.effect = refit("column_1.mass_scale", 2341.6, 3);
+  const RankedEffect favoured = refit("added_mass_node212.mass", 2351.4, 1000);
+  const RankedEffect close = refit("column_1_region_4.mass_scale", 2337.0, 1000);
+  step.alternatives = {favoured, close};
+  EXPECT_TRUE(step.prior_overruled(favoured));
+  EXPECT_FALSE(step.prior_overruled(close));
+  Diagnosis d;
+  d.steps = {step};
+  const std::string text = format_steps(Problem{}, d);
+  EXPECT_NE(text.find("the data favour added_mass_node212.mass"), std::string::npos) << text;
+  EXPECT_NE(text.find("the prior over kinds chose the step's effect"), std::string::npos) << text;
+  EXPECT_EQ(text.find("hardly tell it from added_mass_node212.mass"), std::string::npos) << text;
+  EXPECT_NE(text.find("hardly tell it from column_1_region_4.mass_scale"), std::string::npos) << text;
+}
+
 TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
   // A mass on the base's top face, two element sizes from the nearest sensor and on no node set:
   // no listed candidate is there, but the spatial family has a point mass at every surface node.

@@ -1084,6 +1084,27 @@ std::string paths_text(const Diagnosis& d) {
   return text + line;
 }
 
+namespace {
+
+/// One of step `s`'s alternatives. Where the data favour it by more than 20 : 1 the prior over
+/// kinds made the choice, and the line says so: "hardly tell" would hide that the data, alone,
+/// point elsewhere.
+std::string alternative_text(const DiagnosisStep& s, const RankedEffect& a) {
+  char line[400];
+  if (s.prior_overruled(a))
+    std::snprintf(line, sizeof line,
+                  "            the data favour %s = %.4g (%.4g -> %.4g) by more than 20 : 1; the prior over "
+                  "kinds chose the step's effect (kind penalty 2 ln n %.3g against %.3g)\n",
+                  a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after, s.effect.kind_penalty,
+                  a.kind_penalty);
+  else
+    std::snprintf(line, sizeof line, "            the data hardly tell it from %s = %.4g (%.4g -> %.4g)\n",
+                  a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
+  return line;
+}
+
+}  // namespace
+
 std::string format_steps(const Problem& problem, const Diagnosis& d) {
   std::string text = "the stepwise loop (" + chi2_text(d.noise_known) + " after each accepted effect):\n";
   char line[400];
@@ -1111,10 +1132,7 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
                   s.screened);
     text += line;
     for (size_t k = 0; k < s.alternatives.size(); ++k) {
-      const RankedEffect& a = s.alternatives[k];
-      std::snprintf(line, sizeof line, "            the data hardly tell it from %s = %.4g (%.4g -> %.4g)\n",
-                    a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
-      text += line;
+      text += alternative_text(s, s.alternatives[k]);
       if (k < s.tell_apart.size()) text += tell_apart_text(problem, s.tell_apart[k]);
     }
   }
