@@ -424,12 +424,9 @@ double unabsorbed(const Matrix& A, const Vector& r) {
   return (r - Q * (Q.transpose() * r)).squaredNorm();
 }
 
-/// Noncentrality of the chi-square the calibration cannot absorb (first order), for noise-free
-/// measured data `data` of a truth.
-double noncentrality(const ProblemContext& ctx, const MeasuredData& data) {
-  const Signature s = signature(ctx, data);
-  return s.residual.size() ? unabsorbed(s.jacobian, s.residual) : NAN;
-}
+/// Noncentrality of the chi-square the calibration cannot absorb (first order), for a truth's
+/// signature `s`.
+double noncentrality(const Signature& s) { return s.residual.size() ? unabsorbed(s.jacobian, s.residual) : NAN; }
 
 /// For each effect of a multi-effect truth, the noncentrality its own signature keeps once the
 /// calibration and the other effects' signatures (each alone, first order) absorb what they can:
@@ -1189,7 +1186,7 @@ int main(int argc, char** argv) {
         std::vector<Signature> alone;
         for (EffectSpec& e : c.effects) {
           alone.push_back(signature(ctx, synthesize(ctx, build_truth(ctx, ctx.problem, {e}), MeasurementNoise{}, true)));
-          e.lambda = alone.back().residual.size() ? unabsorbed(alone.back().jacobian, alone.back().residual) : NAN;
+          e.lambda = noncentrality(alone.back());
         }
         if (c.effects.size() > 1) {
           const std::vector<double> given = noncentrality_given_others(alone);
@@ -1199,7 +1196,7 @@ int main(int argc, char** argv) {
         const TruthModel truth = build_truth(ctx, mesh, c.effects);
         c.lambda_case = c.effects.size() == 1 && c.fine_ratio == 0
                             ? c.effects[0].lambda
-                            : noncentrality(ctx, synthesize(ctx, truth, MeasurementNoise{}, true, &mesh));
+                            : noncentrality(signature(ctx, synthesize(ctx, truth, MeasurementNoise{}, true, &mesh)));
         c.detectable = !c.effects.empty() && std::all_of(c.effects.begin(), c.effects.end(), [&](const EffectSpec& e) {
           return e.lambda >= ctx.lambda_star;
         });
