@@ -14,6 +14,7 @@
 #include "modalcal/synthesis.hpp"
 #include "modalcal/uncertainty.hpp"
 #include "modalcal/problem_file.hpp"
+#include "diagnostics/same_change.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -850,6 +851,32 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
   EXPECT_GE(d.screens, static_cast<int>(d.rankings.size())) << report;
 }
 
+TEST(Diagnosis, AMassAtAPlaceIsOneHypothesisInEitherParametrization) {
+  // Another first step is walked only for another hypothesis: a region's mass scale where a
+  // point mass sits would retrace its path, as would a neighbouring point mass; a region's
+  // stiffness there, or a mass scale elsewhere, would not.
+  auto candidate = [](ModelChange::Kind kind, const std::string& property, const Vec3& at) {
+    EffectCandidate c;
+    c.change.kind = kind;
+    c.change.property = property;
+    c.location = at;
+    c.neighbourhood = 0.05;
+    return c;
+  };
+  const EffectCandidate mass = candidate(ModelChange::Kind::AddPointMass, "mass", Vec3(0.4, 0.01, 0.2));
+  const EffectCandidate near_mass = candidate(ModelChange::Kind::AddPointMass, "mass", Vec3(0.4, -0.01, 0.2));
+  const EffectCandidate region_mass = candidate(ModelChange::Kind::AddRegion, "mass_scale", Vec3(0.39, 0, 0.206));
+  const EffectCandidate region_stiffness =
+      candidate(ModelChange::Kind::AddRegion, "stiffness_scale", Vec3(0.39, 0, 0.206));
+  const EffectCandidate far_region_mass = candidate(ModelChange::Kind::AddRegion, "mass_scale", Vec3(0.01, 0, 0.2));
+  EXPECT_TRUE(detail::one_hypothesis(mass, near_mass));
+  EXPECT_TRUE(detail::one_hypothesis(mass, region_mass));
+  EXPECT_TRUE(detail::one_hypothesis(region_mass, mass));
+  EXPECT_FALSE(detail::one_hypothesis(mass, region_stiffness));
+  EXPECT_FALSE(detail::one_hypothesis(mass, far_region_mass));
+  EXPECT_FALSE(mass.neighbour_of(region_mass));  // of two kinds of change: not neighbours
+}
+
 TEST(Diagnosis, AStepSaysWhenThePriorOverKindsChoseAgainstTheData) {
   // A column's mass scale accepted over a point mass that fits better by 9.8 in chi-square (a
   // likelihood ratio of 134 : 1): the prior (one of 3 block mass scales against one of 1,000
@@ -1107,7 +1134,7 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
     const int rank = rank_of(d.ranking, d.paths[k].first);
     ASSERT_GT(rank, 1) << d.paths[k].first;
     EXPECT_TRUE(d.ranking.effects[rank - 1].acceptable()) << d.paths[k].first;
-    EXPECT_FALSE(d.ranking.effects[rank - 1].candidate.neighbour_of(d.ranking.effects.front().candidate));
+    EXPECT_FALSE(detail::one_hypothesis(d.ranking.effects[rank - 1].candidate, d.ranking.effects.front().candidate));
     // One that joined a path walked before (after two or more steps: its first differs) ends
     // where that path ends.
     const DiagnosisPath& path = d.paths[k];

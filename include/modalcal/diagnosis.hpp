@@ -91,7 +91,8 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   bool backward = true;
   /// When the loop took two or more steps or ends with a residual larger than the noise, walk it
   /// again from each of the first step's next-best significant refits (at most this many, none a
-  /// neighbour of the first or of another), and keep the path that ends lowest in chi-square plus
+  /// neighbour of the first or of another, nor mass at the place of one as a point mass or a
+  /// region's mass scale: the same hypothesis), and keep the path that ends lowest in chi-square plus
   /// the first step's critical value and the effect's kind penalty (RankedEffect::kind_penalty)
   /// per kept effect (Diagnosis::paths). With several effects at once the best single effect may
   /// stand in for them together, and one exchange at a time does not undo that. Each path costs

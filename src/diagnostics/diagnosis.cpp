@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "objective/shape_misfit.hpp"
+#include "same_change.hpp"
 
 namespace modalcal {
 
@@ -772,14 +773,16 @@ DiagnosisPath path_of(const Diagnosis& d) {
 }
 
 /// The first ranking's acceptable refits, other than its first, to start another path from: at
-/// most `count`, by score, none a neighbour of one taken before.
+/// most `count`, by score, none the hypothesis of one taken before at its place
+/// (detail::one_hypothesis: a neighbour, or mass at the same place as a point mass or a region's
+/// scale), whose path would retrace that one's.
 std::vector<size_t> other_first_steps(const EffectRanking& ranking, int count) {
   std::vector<size_t> chosen;
   for (size_t k = 1; k < ranking.effects.size() && static_cast<int>(chosen.size()) < count; ++k) {
     const RankedEffect& r = ranking.effects[k];
-    if (!r.acceptable() || r.candidate.neighbour_of(ranking.effects.front().candidate)) continue;
+    if (!r.acceptable() || detail::one_hypothesis(r.candidate, ranking.effects.front().candidate)) continue;
     if (std::none_of(chosen.begin(), chosen.end(),
-                     [&](size_t c) { return ranking.effects[c].candidate.neighbour_of(r.candidate); }))
+                     [&](size_t c) { return detail::one_hypothesis(ranking.effects[c].candidate, r.candidate); }))
       chosen.push_back(k);
   }
   return chosen;

@@ -103,9 +103,7 @@ std::string format_value(double v) {
 /// fit, not their numbers, should choose between. A declared candidate is a kind of its own.
 std::string kind_of(const EffectCandidate& c) {
   if (c.declared) return "declared " + c.name;
-  const bool local_mass = (c.change.kind == ModelChange::Kind::AddPointMass && c.change.property == "mass") ||
-                          (c.change.kind == ModelChange::Kind::AddRegion && c.change.property == "mass_scale");
-  if (local_mass) return "local mass";
+  if (detail::local_mass(c)) return "local mass";
   return std::to_string(static_cast<int>(c.change.kind)) + " " + c.change.property;
 }
 
