@@ -398,6 +398,10 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   for (const auto& a : step["alternatives"]) {
     ASSERT_TRUE(a.contains("tell_apart")) << a.dump();
     ASSERT_TRUE(a.contains("prior_overruled") && a["prior_overruled"].is_boolean()) << a.dump();
+    ASSERT_TRUE(a.contains("data_favour") && a["data_favour"].is_boolean()) << a.dump();
+    if (a["prior_overruled"].get<bool>()) {
+      EXPECT_TRUE(a["data_favour"].get<bool>()) << a.dump();
+    }
     const auto& reading = a["tell_apart"]["reading"];
     if (!reading.is_null()) {
       for (const char* key : {"node", "location", "direction", "measured_mode", "separation"})

@@ -900,16 +900,34 @@ TEST(Diagnosis, AStepSaysWhenThePriorOverKindsChoseAgainstTheData) {
   step.effect = refit("column_1.mass_scale", 2341.6, 3);
   const RankedEffect favoured = refit("added_mass_node212.mass", 2351.4, 1000);
   const RankedEffect close = refit("column_1_region_4.mass_scale", 2337.0, 1000);
-  step.alternatives = {favoured, close};
+  // Of the step's own kind and favoured by the data: not the prior's choice. With other paths
+  // walked, the kept path that began with the step's effect was.
+  const RankedEffect same_kind = refit("column_1.stiffness_scale", 2352.0, 3);
+  step.alternatives = {favoured, close, same_kind};
   EXPECT_TRUE(step.prior_overruled(favoured));
+  EXPECT_FALSE(step.data_favour(close));
   EXPECT_FALSE(step.prior_overruled(close));
+  EXPECT_TRUE(step.data_favour(same_kind));
+  EXPECT_FALSE(step.prior_overruled(same_kind));
   Diagnosis d;
   d.steps = {step};
   const std::string text = format_steps(Problem{}, d);
-  EXPECT_NE(text.find("the data favour added_mass_node212.mass"), std::string::npos) << text;
-  EXPECT_NE(text.find("the prior over kinds chose the step's effect"), std::string::npos) << text;
+  EXPECT_NE(text.find("the data favour added_mass_node212.mass = 1 (2727 -> 375.6) by more than 20 : 1; the prior over "
+                      "kinds chose the step's effect"),
+            std::string::npos)
+      << text;
   EXPECT_EQ(text.find("hardly tell it from added_mass_node212.mass"), std::string::npos) << text;
   EXPECT_NE(text.find("hardly tell it from column_1_region_4.mass_scale"), std::string::npos) << text;
+  EXPECT_NE(text.find("by more than 20 : 1\n"), std::string::npos) << text;  // same kind, one path: no reason given
+  d.paths.resize(2);
+  d.paths[0].first = "column_1.mass_scale";
+  d.paths[0].kept = true;
+  d.paths[1].first = "added_mass_node212.mass";
+  const std::string with_paths = format_steps(Problem{}, d);
+  EXPECT_NE(with_paths.find("the data favour column_1.stiffness_scale = 1 (2727 -> 375) by more than 20 : 1; the path "
+                            "kept, which ends lowest (below), began with the step's effect"),
+            std::string::npos)
+      << with_paths;
 }
 
 TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {

@@ -164,11 +164,15 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// an exchange.
   std::vector<TellApart> tell_apart;
   static constexpr double kAlternativeMargin = 6;  ///< 2 ln 20
-  /// True when the data alone favour `alternative` over the step's effect by more than 20 : 1
-  /// (its statistic exceeds the effect's by more than kAlternativeMargin): the prior over kinds,
-  /// not the data, chose the step's effect.
-  bool prior_overruled(const RankedEffect& alternative) const {
+  /// True when the data alone favour `alternative` over the step's effect by more than 20 : 1:
+  /// its statistic exceeds the effect's by more than kAlternativeMargin.
+  bool data_favour(const RankedEffect& alternative) const {
     return alternative.statistic - effect.statistic > kAlternativeMargin;
+  }
+  /// True when the data favour `alternative` (data_favour()) and the prior over kinds chose the
+  /// step's effect: its score S, the statistic less its kind's penalty, is no lower.
+  bool prior_overruled(const RankedEffect& alternative) const {
+    return data_favour(alternative) && effect.score() >= alternative.score();
   }
   /// For an exchange (Diagnosis::exchanges): the accepted effect this one replaced, and that
   /// effect's score S in the same screen; empty and NaN for a forward step.

@@ -163,6 +163,7 @@ nlohmann::json alternatives_json(const Problem& problem, const DiagnosisStep& s)
                     {"value", json_number(a.value)},
                     {"chi2_after", json_number(a.chi2_after)},
                     {"score", json_number(a.score())},
+                    {"data_favour", s.data_favour(a)},
                     {"prior_overruled", s.prior_overruled(a)},
                     {"tell_apart", k < s.tell_apart.size() ? tell_apart_json(problem, s.tell_apart[k]) : nlohmann::json()}});
   }

@@ -1089,20 +1089,25 @@ std::string paths_text(const Diagnosis& d) {
 
 namespace {
 
-/// One of step `s`'s alternatives. Where the data favour it by more than 20 : 1 the prior over
-/// kinds made the choice, and the line says so: "hardly tell" would hide that the data, alone,
-/// point elsewhere.
-std::string alternative_text(const DiagnosisStep& s, const RankedEffect& a) {
+/// One of step `s`'s alternatives. Where the data favour it by more than 20 : 1 the line says so,
+/// and what chose the step's effect instead: the prior over kinds, or (`first_of_kept_path`) the
+/// path the loop kept, which began with it. "Hardly tell" would hide that the data, alone, point
+/// elsewhere.
+std::string alternative_text(const DiagnosisStep& s, const RankedEffect& a, bool first_of_kept_path) {
   char line[400];
-  if (s.prior_overruled(a))
-    std::snprintf(line, sizeof line,
-                  "            the data favour %s = %.4g (%.4g -> %.4g) by more than 20 : 1; the prior over "
-                  "kinds chose the step's effect (kind penalty 2 ln n %.3g against %.3g)\n",
-                  a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after, s.effect.kind_penalty,
-                  a.kind_penalty);
-  else
+  if (!s.data_favour(a)) {
     std::snprintf(line, sizeof line, "            the data hardly tell it from %s = %.4g (%.4g -> %.4g)\n",
                   a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after);
+    return line;
+  }
+  char why[160] = "";
+  if (s.prior_overruled(a))
+    std::snprintf(why, sizeof why, "; the prior over kinds chose the step's effect (kind penalty 2 ln n %.3g against %.3g)",
+                  s.effect.kind_penalty, a.kind_penalty);
+  else if (first_of_kept_path)
+    std::snprintf(why, sizeof why, "; the path kept, which ends lowest (below), began with the step's effect");
+  std::snprintf(line, sizeof line, "            the data favour %s = %.4g (%.4g -> %.4g) by more than 20 : 1%s\n",
+                a.candidate.name.c_str(), a.value, s.chi2_before, a.chi2_after, why);
   return line;
 }
 
@@ -1135,7 +1140,7 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
                   s.screened);
     text += line;
     for (size_t k = 0; k < s.alternatives.size(); ++k) {
-      text += alternative_text(s, s.alternatives[k]);
+      text += alternative_text(s, s.alternatives[k], s.step == 1 && d.paths.size() > 1);
       if (k < s.tell_apart.size()) text += tell_apart_text(problem, s.tell_apart[k]);
     }
   }
