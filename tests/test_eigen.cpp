@@ -115,6 +115,40 @@ TEST(ModalSolver, ToleranceBelowRoundingFallsBackToSpectra) {
   for (int j = 1; j <= 8; ++j) EXPECT_CLOSE(std::sqrt(s.result.eigenvalues[j - 1]), ChainOmega(600, 2.0, 3.0e4, j), 1e-9);
 }
 
+// Rayleigh-Ritz: a span that holds the modes gives them as solve() does; a span of vectors near
+// them gives eigenvalues from above, off by the square of the vectors' error.
+TEST(ModalSolver, ASpanHoldingTheModesGivesThemAndANearbySpanBoundsThemFromAbove) {
+  const Model chain = MakeChain(400, 1.0, 100.0, true);
+  ParametricSystem system(chain, {});
+  SparseMatrix K, M;
+  system.assemble(Vector(), &K, &M);
+  ModalOptions options;
+  options.num_modes = 5;
+  options.max_rigid_modes = 0;
+  ModalSolver solver(system.pattern(), options);
+  const ModalResult exact = solver.solve(K, M);
+  ASSERT_EQ(exact.status, EigenStatus::Successful) << exact.message;
+  Matrix V(K.rows(), 9);
+  V << exact.modes, Matrix::Random(K.rows(), 4);
+  const ModalResult held = solver.solve_in_span(K, M, V);
+  ASSERT_EQ(held.status, EigenStatus::Successful) << held.message;
+  ASSERT_EQ(held.eigenvalues.size(), 9);  // every Ritz pair
+  for (int j = 0; j < 5; ++j) EXPECT_CLOSE(held.eigenvalues[j], exact.eigenvalues[j], 1e-10);
+  for (int j = 0; j < 5; ++j)  // the same mode, up to the sign a near tie of extremes may flip
+    EXPECT_NEAR(std::abs(held.modes.col(j).dot(M * exact.modes.col(j))), 1.0, 1e-8);
+  const double error = 1e-3;
+  const Matrix near = exact.modes + error * Matrix::Random(K.rows(), 5) / std::sqrt(static_cast<double>(K.rows()));
+  const ModalResult bounded = solver.solve_in_span(K, M, near);
+  ASSERT_EQ(bounded.status, EigenStatus::Successful) << bounded.message;
+  // Off by at most the error's M-norm squared (about error^2 / 3) times the largest eigenvalue,
+  // which Gershgorin bounds by 4 k / m for the chain.
+  for (int j = 0; j < 5; ++j) {
+    EXPECT_GE(bounded.eigenvalues[j], exact.eigenvalues[j] * (1 - 1e-12));
+    EXPECT_LT(bounded.eigenvalues[j] - exact.eigenvalues[j], error * error * 4 * 100.0 / 1.0);
+  }
+  EXPECT_THROW(solver.solve_in_span(K, M, exact.modes.leftCols(4)), std::invalid_argument);
+}
+
 TEST(ModalSolver, BlockPathIsDeterministic) {
   const Solved first = SolveModel(UnevenFreeChain(), 6, 1);
   const Solved second = SolveModel(UnevenFreeChain(), 6, 1);

@@ -121,6 +121,17 @@ class MODALCAL_EXPORT ModalSolver {
 
   /// Lowest modes of (K, M); K and M must have the constructor's pattern.
   ModalResult solve(const SparseMatrix& K, const SparseMatrix& M);
+  /// Rayleigh-Ritz in the span of V's columns: the pairs of \f$V^T K V\, y = \theta\, V^T M V\, y\f$
+  /// as modes \f$u = V y\f$, every one of them (rigid and elastic split, normalized and signed as
+  /// solve() does; `residuals` say how far each is from an eigenpair of (K, M)). The Ritz values
+  /// bound the eigenvalues from above, and are exact when span(V) holds the modes. It costs
+  /// two sparse products with V's columns and a dense eigenproblem of V's width, and leaves the
+  /// factorization alone: for many nearby (K, M) that one span serves, e.g. the steps of a refit
+  /// (Objective::set_span). Fails (status, message) when fewer than options().num_modes elastic
+  /// Ritz pairs exist or V is dependent in M.
+  /// \throws std::invalid_argument if V's columns are not of K's size or fewer than
+  /// num_modes + max_rigid_modes.
+  ModalResult solve_in_span(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V) const;
   const ModalOptions& options() const { return options_; }
   void set_num_modes(int n);
   /// The most modes (elastic and rigid together) a solve can find: every one of a small model's,

@@ -102,6 +102,8 @@ std::string not_positive_definite_message(double sigma, int column) {
 struct Eigenpairs {
   Vector lambda;
   Matrix vectors;
+  // M and K times the vectors, when the solve has them already (Rayleigh-Ritz); empty otherwise.
+  Matrix mass_vectors, stiffness_vectors;
 };
 
 // Dense shift-invert: with A = K - sigma M = L L^T, the eigenvalues of L^{-1} M L^{-T} are
@@ -267,7 +269,7 @@ bool residuals_plausible(const SparseMatrix& K, const ModalOptions& options, Mod
 // (largest component positive) and computes the residuals; false with a message if K is
 // indefinite or singular or too few elastic modes were found.
 bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs& pairs, double rigid_threshold,
-                 const ModalOptions& options, ModalResult* result) {
+                 const ModalOptions& options, int keep, ModalResult* result) {
   const Vector& lambda = pairs.lambda;
   std::vector<int> rigid, elastic;
   for (int k = 0; k < lambda.size(); ++k) {
@@ -289,7 +291,8 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
   }
   // All products with M and K in one pass over each matrix.
   Matrix U = pairs.vectors;
-  Matrix MU = detail::symmetric_times(M, U);
+  Matrix MU = pairs.mass_vectors.size() != 0 ? pairs.mass_vectors : detail::symmetric_times(M, U);
+  Matrix KU_given = pairs.stiffness_vectors;
   for (int k = 0; k < U.cols(); ++k) {
     const double scale = 1.0 / std::sqrt(U.col(k).dot(MU.col(k)));
     Eigen::Index imax;
@@ -297,8 +300,9 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     const double sign = U(imax, k) < 0 ? -scale : scale;
     U.col(k) *= sign;
     MU.col(k) *= sign;
+    if (KU_given.size() != 0) KU_given.col(k) *= sign;
   }
-  const int ne = std::min(options.num_modes, static_cast<int>(elastic.size()));
+  const int ne = std::min(keep, static_cast<int>(elastic.size()));
   result->eigenvalues.resize(ne);
   result->modes.resize(U.rows(), ne);
   result->residuals.resize(ne);
@@ -306,11 +310,13 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     result->eigenvalues[k] = lambda[elastic[k]];
     result->modes.col(k) = U.col(elastic[k]);
   }
-  const Matrix KU = detail::symmetric_times(K, result->modes);
+  const Matrix KU = KU_given.size() != 0 ? Matrix() : detail::symmetric_times(K, result->modes);
   for (int k = 0; k < ne; ++k) {
     const double l = result->eigenvalues[k];
     const auto Mu = MU.col(elastic[k]);
-    result->residuals[k] = (KU.col(k) - l * Mu).norm() / (std::abs(l) * Mu.norm());
+    const Matrix& stiffness = KU.size() != 0 ? KU : KU_given;
+    const auto Ku = stiffness.col(KU.size() != 0 ? k : elastic[k]);
+    result->residuals[k] = (Ku - l * Mu).norm() / (std::abs(l) * Mu.norm());
   }
   result->rigid_eigenvalues.resize(rigid.size());
   result->rigid_modes.resize(U.rows(), rigid.size());
@@ -323,7 +329,41 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     result->message = "found only " + std::to_string(ne) + " elastic modes of " + std::to_string(options.num_modes);
     return false;
   }
-  return residuals_plausible(K, options, result);
+  return true;
+}
+
+// The stiffness-to-mass scale of (K, M) (stiffness_mass_scale), or 0 with the result's message
+// set when a trace shows K or M unusable.
+double checked_scale(const SparseMatrix& K, const SparseMatrix& M, ModalResult* result) {
+  const double trace_ratio = K.diagonal().sum() / M.diagonal().sum();
+  if (!std::isfinite(trace_ratio) || !(trace_ratio > 0)) {
+    result->message = K.diagonal().sum() <= 0
+                          ? "K has a non-positive trace, so K is indefinite: a negative modulus or stiffness "
+                            "(check parameter values and bounds)"
+                          : "K or M has a non-positive or non-finite trace: check moduli, densities and "
+                            "parameter values for zeros, negatives or NaN";
+    return 0;
+  }
+  return stiffness_mass_scale(K, M, trace_ratio);
+}
+
+// Every Ritz pair of (K, M) in span(V), ascending: V^T K V y = theta V^T M V y, the vectors V y.
+// Solved shift-inverted as the dense path solves, so that the lowest values keep their relative
+// accuracy however stiff the span's other directions are.
+bool ritz_pairs(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V, double sigma, ModalResult* result,
+                Eigenpairs* pairs) {
+  const Matrix KV = detail::symmetric_times(K, V), MV = detail::symmetric_times(M, V);
+  Matrix Kr = V.transpose() * KV, Mr = V.transpose() * MV;
+  Kr = 0.5 * (Kr + Kr.transpose()).eval();
+  Mr = 0.5 * (Mr + Mr.transpose()).eval();
+  Eigenpairs reduced;
+  if (!dense_eigenpairs(Kr.sparseView(), Mr.sparseView(), sigma, static_cast<int>(V.cols()), result, &reduced))
+    return false;
+  pairs->lambda = reduced.lambda;
+  pairs->vectors = V * reduced.vectors;
+  pairs->mass_vectors = MV * reduced.vectors;
+  pairs->stiffness_vectors = KV * reduced.vectors;
+  return true;
 }
 
 }  // namespace
@@ -404,19 +444,11 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
   const auto t0 = std::chrono::steady_clock::now();
   ModalResult result;
   const int n = static_cast<int>(K.rows());
-  const double trace_ratio = K.diagonal().sum() / M.diagonal().sum();
-  if (!std::isfinite(trace_ratio) || !(trace_ratio > 0)) {
-    result.message = K.diagonal().sum() <= 0
-                         ? "K has a non-positive trace, so K is indefinite: a negative modulus or stiffness "
-                           "(check parameter values and bounds)"
-                         : "K or M has a non-positive or non-finite trace: check moduli, densities and "
-                           "parameter values for zeros, negatives or NaN";
-    return result;
-  }
+  const double scale = checked_scale(K, M, &result);
+  if (!(scale > 0)) return result;
   // Without a previous solve, -1e-6 times the stiffness-to-mass scale lies near or below the
   // lowest elastic eigenvalue of practical meshes while keeping K - sigma M well conditioned for
   // rigid-body modes.
-  const double scale = stiffness_mass_scale(K, M, trace_ratio);
   const double sigma = shift_ < 0 ? shift_ : -1e-6 * scale;
   result.shift = sigma;
   const int wanted = options_.num_modes + options_.max_rigid_modes;
@@ -436,10 +468,30 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
       n <= kDenseLimit
           ? dense_eigenpairs(K, M, sigma, wanted, &result, &pairs) && impl_->factor.factorize(K, M, sigma, nullptr)
           : sparse_eigenpairs(impl_->factor, K, M, sigma, wanted, rigid_threshold, options_, &result, &pairs);
-  if (found && split_modes(K, M, pairs, rigid_threshold, options_, &result)) {
+  if (found && split_modes(K, M, pairs, rigid_threshold, options_, options_.num_modes, &result) &&
+      residuals_plausible(K, options_, &result)) {
     result.status = EigenStatus::Successful;
     shift_ = -0.3 * result.eigenvalues[0];
   }
+  result.seconds_total = seconds_since(t0);
+  return result;
+}
+
+ModalResult ModalSolver::solve_in_span(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  ModalResult result;
+  if (V.rows() != K.rows() || V.cols() < options_.num_modes + options_.max_rigid_modes)
+    throw std::invalid_argument("ModalSolver::solve_in_span: the span has " + std::to_string(V.cols()) +
+                                " columns of length " + std::to_string(V.rows()) + "; it needs at least " +
+                                std::to_string(options_.num_modes + options_.max_rigid_modes) + " of length " +
+                                std::to_string(K.rows()));
+  const double scale = checked_scale(K, M, &result);
+  if (!(scale > 0)) return result;
+  Eigenpairs pairs;
+  const double sigma = shift_ < 0 ? shift_ : -1e-6 * scale;
+  if (ritz_pairs(K, M, V, sigma, &result, &pairs) &&
+      split_modes(K, M, pairs, options_.rigid_tolerance * scale, options_, static_cast<int>(V.cols()), &result))
+    result.status = EigenStatus::Successful;
   result.seconds_total = seconds_since(t0);
   return result;
 }
