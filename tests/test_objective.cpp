@@ -154,6 +154,47 @@ TEST(Objective, ResidualJacobianMatchesCentralDifferences) {
   }
 }
 
+// In the span span_at(p) gives (the modes and the directions of their derivatives at p), the
+// objective equals the whole model's at p, stays close to it a step away, and its gradient and
+// Jacobian are the exact derivatives of the reduced model it then evaluates.
+TEST(Objective, InTheSpanOfAPointItAgreesThereAndItsDerivativesAreExact) {
+  const Problem problem = LoadModel();
+  Objective whole(problem), reduced(problem);
+  const Vector p = problem.initial_values();
+  Matrix span = reduced.span_at(p);
+  EXPECT_FALSE(reduced.in_span());
+  ASSERT_LT(span.cols(), reduced.system().num_dofs());
+  reduced.set_span(std::move(span));
+  EXPECT_TRUE(reduced.in_span());
+  const Evaluation at_whole = whole.evaluate(p), at_span = reduced.evaluate(p);
+  ASSERT_TRUE(at_whole.ok && at_span.ok) << at_whole.message << at_span.message;
+  EXPECT_NEAR(at_span.value, at_whole.value, 1e-8 * at_whole.value);
+  // A step of 3 % in every parameter: the span's modes are good to first order, their
+  // eigenvalues to second, so the misfit moves by a far smaller share than the step.
+  const Vector q = p * 1.03;
+  const Evaluation near_whole = whole.evaluate(q), near_span = reduced.evaluate(q);
+  ASSERT_TRUE(near_whole.ok && near_span.ok) << near_whole.message << near_span.message;
+  EXPECT_NEAR(near_span.value, near_whole.value, 1e-3 * near_whole.value);
+  EXPECT_GT(std::abs(near_whole.value - at_whole.value), 1e-2 * at_whole.value) << "the step changes nothing";
+  GradientCheckOptions check_options;
+  check_options.tolerance = 1e-5;
+  const GradientCheck check = check_gradient(reduced, q, check_options);
+  EXPECT_TRUE(check.ok) << check.report;
+  const Evaluation e = reduced.evaluate(q, Need::Jacobian);
+  ASSERT_TRUE(e.ok) << e.message;
+  for (int j = 0; j < q.size(); ++j) {
+    const double h = 1e-5 * std::abs(q[j]);
+    Vector plus = q, minus = q;
+    plus[j] += h;
+    minus[j] -= h;
+    const Vector fd = (reduced.evaluate(plus).residuals - reduced.evaluate(minus).residuals) / (2 * h);
+    EXPECT_LT((fd - e.jacobian.col(j)).norm(), 1e-4 * (fd.norm() + 1e-12)) << problem.parameters[j].name;
+  }
+  reduced.set_span(Matrix());
+  EXPECT_NEAR(reduced.evaluate(q).value, near_whole.value, 1e-10 * near_whole.value);
+  EXPECT_THROW(reduced.set_span(Matrix::Ones(3, 2)), std::invalid_argument);
+}
+
 TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {
   const Problem problem = LoadModel();
   ObjectiveOptions direct_options, adjoint_options;

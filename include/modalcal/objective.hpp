@@ -175,6 +175,25 @@ class MODALCAL_EXPORT Objective {
   /// The misfit and what `need` asks for at p. A point where the last forward solve of this
   /// objective (or one sharing its model) was made is not solved again.
   Evaluation evaluate(const Vector& p, Need need = Need::Value);
+  /// Evaluations from now on solve the eigenproblem in the span of `basis`'s columns
+  /// (Rayleigh-Ritz, ModalSolver::solve_in_span) instead of the whole model, and their
+  /// derivatives are the exact ones of that reduced model: its linear solves are modal sums over
+  /// every Ritz pair, with no factorization. An empty basis returns to the whole model. With a
+  /// span from span_at(p) the reduced model agrees with the whole one near p (eigenvalues to
+  /// second order in the eigenvector error), at a fraction of an evaluation's cost: for the many
+  /// evaluations of a short walk from p, such as a refit, checked on the whole model at its end.
+  /// Objectives sharing a model (the full-space driver's) share the span.
+  /// \throws std::invalid_argument if the columns are not of the model's size.
+  void set_span(Matrix basis);
+  bool in_span() const;
+  /// A span for set_span that holds, at p, the modes the objective computes and the directions
+  /// their derivatives take: for each paired mode u (eigenvalue lambda) and parameter j,
+  /// \f$A^{-1} (K_{,j} - \lambda M_{,j}) u\f$ and \f$A^{-1} M A^{-1} (K_{,j} - \lambda M_{,j}) u\f$
+  /// with \f$A = K - \sigma M\f$ factorized by the forward solve; M-orthonormal, dependent
+  /// columns dropped. One forward solve of the whole model and two block solves. Leaves the
+  /// objective on the whole model (no span).
+  /// \throws std::runtime_error if the forward solve at p fails.
+  Matrix span_at(const Vector& p);
   const Problem& problem() const { return problem_; }
   const ObjectiveOptions& options() const { return options_; }
   /// The variables the regularization acts in (the problem file's scaling).

@@ -69,6 +69,16 @@ bool any_of(const std::vector<bool>& flags) { return std::find(flags.begin(), fl
 
 }  // namespace
 
+Matrix solve_in_basis(const DeflationBasis& basis, const std::vector<int>& own, const Matrix& B) {
+  Matrix weights = basis.modes.transpose() * B;  // u_k^T b, then divided by lambda_k - lambda_own
+  for (Eigen::Index c = 0; c < B.cols(); ++c) {
+    const int own_mode = own[static_cast<size_t>(c)];
+    weights.col(c).array() /= basis.eigenvalues.array() - basis.eigenvalues[own_mode];
+    weights(own_mode, c) = 0;
+  }
+  return basis.modes * weights;
+}
+
 DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M, const DeflationBasis& basis,
                                    const std::vector<int>& own, const Matrix& B,
                                    const std::function<Matrix(const Matrix&)>& precondition, double tolerance,

@@ -44,4 +44,9 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
                                    const std::function<Matrix(const Matrix&)>& precondition, double tolerance,
                                    int max_iterations);
 
+/// The same solves when the basis spans the whole space they are solved in (every Ritz pair of a
+/// Rayleigh-Ritz model, Objective::set_span): then the modal part is the whole solution,
+/// x_c = sum over k != own[c] of u_k (u_k^T b_c) / (lambda_k - lambda_own[c]).
+Matrix solve_in_basis(const DeflationBasis& basis, const std::vector<int>& own, const Matrix& B);
+
 }  // namespace modalcal::detail

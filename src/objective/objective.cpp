@@ -1,11 +1,13 @@
 #include "modalcal/objective.hpp"
 #include "support/text_util.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <optional>
 #include <sstream>
 
+#include "eigen/block_lanczos.hpp"  // symmetric_times
 #include "modalcal/mode_description.hpp"
 #include "objective/assignment.hpp"
 #include "objective/deflated_solve.hpp"
@@ -52,9 +54,46 @@ struct Objective::Workspace {
   bool has_solved = false;
   Vector solved_at;
   ModalResult solved;
+  // Objective::set_span: the span the evaluations solve in (empty: the whole model), and every
+  // Ritz pair of the last solve there, the deflation basis that makes its linear solves exact.
+  Matrix span;
+  ModalResult span_pairs;
 };
 
 namespace {
+
+// The rigid-body modes and the first `elastic` elastic ones of `all`.
+ModalResult first_modes(const ModalResult& all, int elastic) {
+  ModalResult first = all;
+  const int n = std::min(elastic, static_cast<int>(all.eigenvalues.size()));
+  first.eigenvalues = all.eigenvalues.head(n);
+  first.modes = all.modes.leftCols(n);
+  first.residuals = all.residuals.head(n);
+  return first;
+}
+
+// [U, C] with C made M-orthogonal to U (M-orthonormal columns) and M-orthonormal itself, its
+// columns dependent on the rest (below 1e-10 of its largest direction, each first scaled to unit
+// M-norm) dropped: U's span is kept exactly.
+Matrix extend_m_orthonormal(const SparseMatrix& M, const Matrix& U, Matrix C) {
+  const Matrix MU = detail::symmetric_times(M, U);
+  for (int pass = 0; pass < 2; ++pass) C -= U * (MU.transpose() * C);  // twice: once loses digits
+  const Matrix MC = detail::symmetric_times(M, C);
+  for (Eigen::Index c = 0; c < C.cols(); ++c) {
+    const double norm = std::sqrt(std::max(C.col(c).dot(MC.col(c)), 0.0));
+    if (norm > 0) C.col(c) /= norm;
+  }
+  Matrix G = C.transpose() * detail::symmetric_times(M, C);
+  G = 0.5 * (G + G.transpose()).eval();
+  Eigen::SelfAdjointEigenSolver<Matrix> es(G);
+  const Vector& d = es.eigenvalues();
+  Eigen::Index first = 0;
+  while (first < d.size() && !(d[first] > 1e-10 * d[d.size() - 1])) ++first;
+  const Eigen::Index kept = d.size() - first;
+  Matrix V(U.rows(), U.cols() + kept);
+  V << U, C * (es.eigenvectors().rightCols(kept) * d.tail(kept).cwiseSqrt().cwiseInverse().asDiagonal());
+  return V;
+}
 
 // The eigenvalue residual r(lambda) of one measured mode with its first two derivatives.
 struct EigenvalueResidual {
@@ -250,7 +289,12 @@ bool Objective::Evaluator::forward_solve() {
     return true;
   }
   o_.system_->assemble(p_, &ws_.K, &ws_.M);
-  e_.modal = o_.solver_->solve(ws_.K, ws_.M);
+  if (ws_.span.size() == 0) {
+    e_.modal = o_.solver_->solve(ws_.K, ws_.M);
+  } else {
+    ws_.span_pairs = o_.solver_->solve_in_span(ws_.K, ws_.M, ws_.span);
+    e_.modal = first_modes(ws_.span_pairs, ws_.modes_needed);
+  }
   ++o_.forward_solves_;
   ws_.has_solved = e_.modal.status == EigenStatus::Successful;
   if (ws_.has_solved) {
@@ -329,7 +373,13 @@ void Objective::Evaluator::central_difference_gradient() {
 // The deflation basis only for the linear solves (shape adjoints, sensitivities): its product
 // M U alone costs about 3 % of a forward solve, more than the whole eigenvalue-only gradient.
 const detail::DeflationBasis& Objective::Evaluator::deflation_basis() {
-  if (basis_.modes.size() == 0) {
+  if (basis_.modes.size() == 0 && ws_.span.size() != 0) {
+    const ModalResult& all = ws_.span_pairs;  // in a span, every Ritz pair
+    basis_.modes.resize(all.modes.rows(), all.rigid_modes.cols() + all.modes.cols());
+    basis_.modes << all.rigid_modes, all.modes;
+    basis_.eigenvalues.resize(basis_.modes.cols());
+    basis_.eigenvalues << all.rigid_eigenvalues, all.eigenvalues;  // no M U: solve_in_basis needs none
+  } else if (basis_.modes.size() == 0) {
     basis_.modes.resize(U().rows(), rigid() + num_model());
     basis_.modes << e_.modal.rigid_modes, U();
     basis_.eigenvalues.resize(rigid() + num_model());
@@ -343,6 +393,10 @@ const detail::DeflationBasis& Objective::Evaluator::deflation_basis() {
 // with `what` and the solver's reason, and nullopt is returned.
 std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, const std::vector<int>& own_columns,
                                                            const Matrix& B) {
+  if (ws_.span.size() != 0) {  // the Ritz pairs span the whole space solved in: no iteration
+    e_.linear_solves += static_cast<int>(B.cols());
+    return detail::solve_in_basis(deflation_basis(), own_columns, B);
+  }
   auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
   detail::DeflatedSolveResult solve = detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B,
                                                              precondition, o_.options_.linear_tolerance,
@@ -525,6 +579,40 @@ bool Objective::Evaluator::sensitivities(Need need) {
                         has_shape ? adjoint_solution_.col(shape) : Vector(), &e_.hessian);
   }
   return true;
+}
+
+void Objective::set_span(Matrix basis) {
+  if (basis.size() != 0 && basis.rows() != system_->num_dofs())
+    throw std::invalid_argument("Objective::set_span: columns of length " + std::to_string(basis.rows()) + " for " +
+                                std::to_string(system_->num_dofs()) + " DOFs");
+  workspace_->span = std::move(basis);
+  workspace_->has_solved = false;  // the last solve was in the other space
+}
+
+bool Objective::in_span() const { return workspace_->span.size() != 0; }
+
+Matrix Objective::span_at(const Vector& p) {
+  set_span(Matrix());
+  const Evaluation e = evaluate(p, Need::Value);
+  if (!e.ok) throw std::runtime_error("Objective::span_at: " + e.message);
+  // (dK_j - lambda dM_j) u of each paired mode and parameter: their images under the
+  // factorization of K - sigma M at p, the last solve's, are the sensitivities but for the part
+  // in the modes computed and a factor near 1 on the rest (lambda << the modes beyond).
+  const int np = num_parameters();
+  Matrix rhs(system_->num_dofs(), static_cast<Eigen::Index>(e.pairs.size()) * np);
+  Eigen::Index column = 0;
+  for (const PairedMode& pair : e.pairs)
+    for (int j = 0; j < np; ++j) {
+      Vector dKu, dMu;
+      system_->derivative_times(p, j, e.modal.modes.col(pair.model), &dKu, &dMu);
+      rhs.col(column++) = dKu - e.modal.eigenvalues[pair.model] * dMu;
+    }
+  const Matrix corrections = solver_->solve_factorized(rhs);
+  Matrix U(system_->num_dofs(), e.modal.rigid_modes.cols() + e.modal.modes.cols());
+  U << e.modal.rigid_modes, e.modal.modes;
+  Matrix C(system_->num_dofs(), 2 * corrections.cols());
+  C << corrections, solver_->solve_factorized(detail::symmetric_times(workspace_->M, corrections));
+  return extend_m_orthonormal(workspace_->M, U, std::move(C));
 }
 
 Evaluation Objective::evaluate(const Vector& p, Need need) {
