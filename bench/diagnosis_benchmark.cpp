@@ -959,6 +959,7 @@ struct Args {
   int region_levels = CandidateOptions().region_levels;
   double region_elements = CandidateOptions().region_elements;
   double refit_function_tolerance = RankingOptions::default_refit_options().function_tolerance;
+  double refit_span_share = RankingOptions().refit_span_share;
   bool equal_kind_prior = RankingOptions().equal_kind_prior;
   bool stop_when_consistent = DiagnosisOptions().stop_when_consistent;
   bool print_diagnosis = false;
@@ -976,6 +977,7 @@ void usage() {
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--region-levels N]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
+      "                    [--refit-span-share X]\n"
       "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
       "  RankingOptions::refits, place_refits, kind_refits, neighbour_refits, neighbour_rounds and\n"
       "  equal_kind_prior; --first-step-alternatives:\n"
@@ -985,7 +987,8 @@ void usage() {
       "  cases are drawn from the finest grid's whatever it is); --region-size:\n"
       "  CandidateOptions::region_elements, the finest regions' size in element sizes (the cases are\n"
       "  drawn from regions of the default size whatever it is);\n"
-      "  --refit-function-tolerance: RankingOptions::refit.function_tolerance;\n"
+      "  --refit-function-tolerance: RankingOptions::refit.function_tolerance; --refit-span-share:\n"
+      "  RankingOptions::refit_span_share (0: every refit on the whole model);\n"
       "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
       "  step's 40 best candidates and the 8 best of those that would count as right;\n"
       "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
@@ -1076,6 +1079,7 @@ int main(int argc, char** argv) {
         if (!candidates.IsValid(&why)) throw std::invalid_argument("--region-size: " + why);
       }
       else if (a == "--refit-function-tolerance") args.refit_function_tolerance = std::stod(next());
+      else if (a == "--refit-span-share") args.refit_span_share = std::stod(next());
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
@@ -1223,6 +1227,7 @@ int main(int argc, char** argv) {
           options.candidates.region_levels = args.region_levels;
           options.candidates.region_elements = args.region_elements;
           options.ranking.refit.function_tolerance = args.refit_function_tolerance;
+          options.ranking.refit_span_share = args.refit_span_share;
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);

@@ -685,6 +685,23 @@ TEST(EffectRanking, RefitsEndedByTheFunctionToleranceFitAsTheTightOnes) {
   EXPECT_LT(costs.loose, costs.tight);
 }
 
+TEST(EffectRanking, RefitsWalkedInASpanEndAtTheWholeModelsChiSquare) {
+  // A refit walks in the span Objective::span_at gives at its start and is checked at its end on
+  // the whole model: each ends within the function tolerance of the walk on the whole model, and
+  // the same effect is best.
+  const EffectRanking whole = RankHiddenKrx([](RankingOptions* o) { o->refit_span_share = 0; });
+  const EffectRanking span = RankHiddenKrx([](RankingOptions* o) { o->refit_span_share = 1; });
+  ASSERT_FALSE(whole.effects.empty());
+  ASSERT_FALSE(span.effects.empty());
+  EXPECT_EQ(span.effects.front().candidate.name, whole.effects.front().candidate.name);
+  EXPECT_GE(CompareRefits(whole, span, 1e-3, &ReducedSummary::forward_solves).refits, 3);
+  RankingOptions bad;
+  bad.refit_span_share = 1.5;
+  std::string error;
+  EXPECT_FALSE(bad.IsValid(&error));
+  EXPECT_NE(error.find("refit_span_share"), std::string::npos) << error;
+}
+
 TEST(EffectRanking, AJointSoftenedFromNearRigidIsPredictedInItsCompliance) {
   // The model's joint holds y at 1e4, where it is near rigid (the modes hardly change from 1e4 to
   // 1e6); the truth's is 300. In log10 k the slope at 1e4 is small, the step stops on the range's

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "objective/shape_misfit.hpp"
+#include "refit_walk.hpp"
 #include "same_change.hpp"
 
 namespace modalcal {
@@ -167,7 +168,7 @@ std::optional<Vector> calibrate_with(const Problem& fitted, const std::vector<Ef
     return std::nullopt;
   }
   Objective objective(with, options.ranking.refit_objective());
-  const ReducedSummary summary = minimize_reduced(objective, p, options.ranking.refit);
+  const ReducedSummary summary = detail::refit_walk(objective, p, options.ranking);
   if (summary.final.size() != p.size()) return std::nullopt;
   return summary.final;
 }

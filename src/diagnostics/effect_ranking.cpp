@@ -15,6 +15,7 @@
 
 #include "modalcal/effects.hpp"
 #include "modalcal/task_map.hpp"
+#include "refit_walk.hpp"
 #include "same_change.hpp"
 #include "support/text_util.hpp"
 
@@ -177,6 +178,83 @@ void add_kind_refits(const std::vector<RankedEffect>& screened, const RankingOpt
   chosen->insert(chosen->end(), best_of_kinds.begin(), best_of_kinds.begin() + static_cast<std::ptrdiff_t>(count));
 }
 
+/// Two walks' counts as one.
+void add_counts(const ReducedSummary& first, ReducedSummary* then) {
+  then->iterations += first.iterations;
+  then->forward_solves += first.forward_solves;
+  then->linear_solves += first.linear_solves;
+  then->failed_evaluations += first.failed_evaluations;
+}
+
+/// Whether `end`, where a walk in the objective's span stopped, is where a Gauss-Newton walk on
+/// the whole model would stop too: the whole model's misfit there agrees with the span's
+/// (`span_value`) to the refit's function tolerance, and a Gauss-Newton step with the whole
+/// model's gradient (the span's Jacobian standing in for the whole one's) would lower it by less
+/// than that. Parameters on a bound that the gradient pushes against are left out of the step.
+/// Leaves the objective on the whole model, with its value at `end` in `whole_value`.
+bool ends_on_the_whole_model(Objective& objective, const Vector& end, double span_value, double tolerance,
+                             double* whole_value) {
+  const Evaluation in_span = objective.evaluate(end, Need::Jacobian);
+  objective.set_span(Matrix());
+  const Evaluation whole = objective.evaluate(end, Need::Gradient);
+  *whole_value = whole.ok ? whole.value : NAN;
+  if (!in_span.ok || !whole.ok || !(std::abs(whole.value - span_value) <= tolerance * whole.value)) return false;
+  const std::vector<Parameter>& parameters = objective.problem().parameters;
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index j = 0; j < end.size(); ++j) {
+    const Parameter& q = parameters[static_cast<size_t>(j)];
+    const double width = 1e-9 * (q.upper - q.lower);
+    const bool held = (end[j] <= q.lower + width && whole.gradient[j] > 0) ||
+                      (end[j] >= q.upper - width && whole.gradient[j] < 0);
+    if (!held) free.push_back(j);
+  }
+  Matrix J(in_span.jacobian.rows(), static_cast<Eigen::Index>(free.size()));
+  Vector g(static_cast<Eigen::Index>(free.size()));
+  for (size_t k = 0; k < free.size(); ++k) {
+    J.col(static_cast<Eigen::Index>(k)) = in_span.jacobian.col(free[k]);
+    g[static_cast<Eigen::Index>(k)] = whole.gradient[free[k]];
+  }
+  Matrix H = J.transpose() * J;
+  H.diagonal().array() += 1e-12 * std::max(H.diagonal().maxCoeff(), 1e-300);
+  const double predicted_decrease = 0.5 * g.dot(H.ldlt().solve(g));
+  return predicted_decrease <= tolerance * whole.value;
+}
+
+}  // namespace
+
+namespace detail {
+
+ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingOptions& options) {
+  const double dofs = objective.system().num_dofs();
+  if (!(options.refit_span_share * dofs >= 1)) return minimize_reduced(objective, p0, options.refit);
+  Matrix span;
+  try {
+    span = objective.span_at(p0);
+  } catch (const std::runtime_error&) {
+    return minimize_reduced(objective, p0, options.refit);  // it fails there too, with its reason
+  }
+  if (span.cols() > options.refit_span_share * dofs) return minimize_reduced(objective, p0, options.refit);
+  objective.set_span(std::move(span));
+  ReducedSummary walk = minimize_reduced(objective, p0, options.refit);
+  const bool usable = walk.final.size() == p0.size() && std::isfinite(walk.final_objective);
+  double whole_value = NAN;
+  if (usable &&
+      ends_on_the_whole_model(objective, walk.final, walk.final_objective, options.refit.function_tolerance,
+                              &whole_value)) {
+    walk.final_objective = whole_value;
+    ++walk.forward_solves;
+    return walk;
+  }
+  objective.set_span(Matrix());
+  ReducedSummary rest = minimize_reduced(objective, std::isfinite(whole_value) ? walk.final : p0, options.refit);
+  add_counts(walk, &rest);
+  return rest;
+}
+
+}  // namespace detail
+
+namespace {
+
 /// One refit (every calibration parameter free, the effect started at its first-order value or
 /// its declared start), as a TaskMap result: the optimizer's outcome, then whether the refitted
 /// model could be evaluated, and its misfit.
@@ -190,7 +268,7 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   Objective refit_objective(with, options.refit_objective());
   Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
   p0[np] = start;
-  const ReducedSummary refit = minimize_reduced(refit_objective, p0, options.refit);
+  const ReducedSummary refit = detail::refit_walk(refit_objective, p0, options);
   TaskCodec outcome;
   outcome.put(static_cast<double>(static_cast<int>(refit.status)));
   outcome.put(static_cast<double>(refit.iterations));
@@ -622,6 +700,8 @@ bool RankingOptions::IsValid(std::string* error) const {
     return bad("kind_refit_share = " + detail::option_text(kind_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
     return bad("significance = " + detail::option_text(significance) + ": must be in (0, 0.5)");
+  if (!(refit_span_share >= 0 && refit_span_share <= 1))
+    return bad("refit_span_share = " + detail::option_text(refit_span_share) + ": must be in [0, 1]");
   if (!(refit_linear_tolerance > 0 && refit_linear_tolerance <= 1e-4))
     return bad("refit_linear_tolerance = " + detail::option_text(refit_linear_tolerance) + ": must be in (0, 1e-4]");
   std::string inner;
