@@ -585,6 +585,7 @@ void Objective::set_span(Matrix basis) {
   if (basis.size() != 0 && basis.rows() != system_->num_dofs())
     throw std::invalid_argument("Objective::set_span: columns of length " + std::to_string(basis.rows()) + " for " +
                                 std::to_string(system_->num_dofs()) + " DOFs");
+  if (basis.size() == 0 && workspace_->span.size() == 0) return;  // on the whole model already
   workspace_->span = std::move(basis);
   workspace_->has_solved = false;  // the last solve was in the other space
 }
