@@ -686,9 +686,9 @@ TEST(EffectRanking, RefitsEndedByTheFunctionToleranceFitAsTheTightOnes) {
 }
 
 TEST(EffectRanking, RefitsWalkedInASpanEndAtTheWholeModelsChiSquare) {
-  // A refit walks in the span Objective::span_at gives at its start and is checked at its end on
-  // the whole model: each ends within the function tolerance of the walk on the whole model, and
-  // the same effect is best.
+  // A refit walks in the step's span (the ranked model's at the calibrated point, extended by the
+  // effect's own directions) and is checked at its end on the whole model: each ends within the
+  // function tolerance of the walk on the whole model, and the same effect is best.
   const EffectRanking whole = RankHiddenKrx([](RankingOptions* o) { o->refit_span_share = 0; });
   const EffectRanking span = RankHiddenKrx([](RankingOptions* o) { o->refit_span_share = 1; });
   ASSERT_FALSE(whole.effects.empty());

@@ -310,6 +310,10 @@ TEST(ModelChange, FlexibleSupportReplacesAFixityBySprings) {
   EXPECT_EQ(before.free_index(root_node, 0), -1);
   EXPECT_GE(after.free_index(root_node, 0), 0);
   EXPECT_EQ(after.free_index(root_node, 1), -1);
+  EXPECT_FALSE(before == after) << "vectors on one are not vectors on the other";
+  Model with_mass = nominal;
+  apply_model_change(&with_mass, parse_model_change("point_mass@[0.1,0.01,0]:mass=1"));
+  EXPECT_TRUE(before == DofMap(with_mass)) << "a point mass moves no DOF";
   // A stiff support is nearly rigid and a soft one lowers the axial frequency; bending is unchanged
   // to first order (the bar's first modes bend).
   Model stiff = nominal, soft = nominal;

@@ -2,6 +2,7 @@
 // central finite differences for every parameter kind (E, nu, K, G, density, scales, joint,
 // spring, point mass and inertia) with eigenvalue and mode-shape terms and regularization.
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <string>
@@ -193,6 +194,51 @@ TEST(Objective, InTheSpanOfAPointItAgreesThereAndItsDerivativesAreExact) {
   reduced.set_span(Matrix());
   EXPECT_NEAR(reduced.evaluate(q).value, near_whole.value, 1e-10 * near_whole.value);
   EXPECT_THROW(reduced.set_span(Matrix::Ones(3, 2)), std::invalid_argument);
+}
+
+// A span made at p for a model, extended for the model with one more parameter (its spring
+// stiffness, as a diagnosis's candidate effect is added), serves the wider model as its own
+// span_at would: it holds the wider model's modes at p, and a step in every parameter, the new
+// one included, moves the misfit in the span as on the whole model. Without the extension the
+// step in the new parameter is met less well.
+TEST(Objective, ASpanExtendedForAWiderModelServesItAsItsOwnWould) {
+  Problem wider_problem = LoadModel();
+  std::vector<Parameter>& parameters = wider_problem.parameters;
+  const auto spring = std::find_if(parameters.begin(), parameters.end(), [](const Parameter& q) { return q.name == "spring"; });
+  ASSERT_NE(spring, parameters.end());
+  std::rotate(spring, spring + 1, parameters.end());
+  Problem narrow_problem = wider_problem;
+  narrow_problem.parameters.pop_back();
+  const Eigen::Index last = static_cast<Eigen::Index>(parameters.size()) - 1;
+  Vector p = wider_problem.initial_values();
+  p[last] = wider_problem.model.properties[parameters.back().targets.front()].value;  // where the narrow model is
+  const Vector head = p.head(last);
+
+  Objective narrow(narrow_problem), wider(wider_problem), whole(wider_problem), own_only(wider_problem);
+  const Matrix own = narrow.span_at(head);
+  const Matrix span = narrow.extend_span(own, head, wider.system(), p);
+  EXPECT_FALSE(narrow.in_span());
+  ASSERT_GT(span.cols(), own.cols());
+  ASSERT_LT(span.cols(), wider.system().num_dofs());
+  EXPECT_EQ((span.leftCols(own.cols()) - own).norm(), 0) << "the narrow model's span is kept as it was";
+  wider.set_span(span);
+  own_only.set_span(own);
+  const Evaluation at_whole = whole.evaluate(p), at_span = wider.evaluate(p);
+  ASSERT_TRUE(at_whole.ok && at_span.ok) << at_whole.message << at_span.message;
+  EXPECT_NEAR(at_span.value, at_whole.value, 1e-8 * at_whole.value);
+
+  Vector q = p * 1.03;
+  q[last] = 1.5 * p[last];
+  const Evaluation near_whole = whole.evaluate(q), near_span = wider.evaluate(q), near_own = own_only.evaluate(q);
+  ASSERT_TRUE(near_whole.ok && near_span.ok && near_own.ok) << near_whole.message << near_span.message;
+  EXPECT_GT(std::abs(near_whole.value - at_whole.value), 1e-2 * at_whole.value) << "the step changes nothing";
+  const double error = std::abs(near_span.value - near_whole.value);
+  EXPECT_LT(error, 1e-3 * near_whole.value);
+  EXPECT_LT(error, std::abs(near_own.value - near_whole.value)) << "the extension adds nothing";
+
+  EXPECT_THROW(narrow.extend_span(own, head, narrow.system(), head), std::invalid_argument);  // nothing wider
+  EXPECT_THROW(narrow.extend_span(own, head, wider.system(), head), std::invalid_argument);   // no value for it
+  EXPECT_THROW(narrow.extend_span(Matrix::Ones(3, 2), head, wider.system(), p), std::invalid_argument);
 }
 
 TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {

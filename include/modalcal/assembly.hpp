@@ -49,6 +49,9 @@ class MODALCAL_EXPORT DofMap {
   int node_dofs(int node) const { return node_offset_[node + 1] - node_offset_[node]; }
   /// Displacement of (node, component) for a free-DOF vector u (0 for fixed DOFs).
   double value(const Vector& u, int node, int component) const;
+  /// Whether the two number the same DOFs alike and eliminate them alike (the same T): vectors
+  /// on one are vectors on the other.
+  bool operator==(const DofMap& other) const;
 
  private:
   std::vector<int> node_offset_;                 // first full DOF of each node

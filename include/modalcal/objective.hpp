@@ -194,6 +194,17 @@ class MODALCAL_EXPORT Objective {
   /// objective on the whole model (no span).
   /// \throws std::runtime_error if the forward solve at p fails.
   Matrix span_at(const Vector& p);
+  /// `span` (span_at(p)'s, or one holding it) extended for a wider model on the same DOFs: this
+  /// model with more parameters, such as a candidate effect. For each parameter q of `wider`
+  /// beyond this objective's and each paired mode u of this model at p, the directions
+  /// \f$A^{-1} (K_{,q} - \lambda M_{,q}) u\f$ and \f$A^{-1} M A^{-1} (K_{,q} - \lambda M_{,q}) u\f$,
+  /// with wider's derivatives at wider_p and this model's factorization at p. No forward solve
+  /// when p is where this objective last solved (as after span_at(p)): many wider models, the
+  /// refits of one diagnosis step, then share one solve. Leaves the objective on the whole model.
+  /// \throws std::invalid_argument if wider's DOFs differ, it has no further parameter or wider_p
+  /// is not one value for each, or span's columns are not of the model's size;
+  /// std::runtime_error if the forward solve at p fails.
+  Matrix extend_span(const Matrix& span, const Vector& p, const ParametricSystem& wider, const Vector& wider_p);
   const Problem& problem() const { return problem_; }
   const ObjectiveOptions& options() const { return options_; }
   /// The variables the regularization acts in (the problem file's scaling).
@@ -220,6 +231,11 @@ class MODALCAL_EXPORT Objective {
   void check_problem() const;
   int count_modes_and_residuals();
   class Evaluator;  // one evaluation's steps (objective.cpp)
+  /// The evaluation at p on the whole model; \throws std::runtime_error naming `caller` if it fails.
+  Evaluation whole_model_evaluation(const Vector& p, const char* caller);
+  /// The span's directions (span_at) of e's paired modes for the parameters `first`.. of `system`
+  /// at `at`, with the factorization of the last forward solve.
+  Matrix mode_directions(const Evaluation& e, const ParametricSystem& system, const Vector& at, int first) const;
   void add_mode_hessian(const Vector& p, int i, double lambda, const Vector& u, const Matrix& X, const Matrix& dU,
                         const Vector& dlambda, const Vector& m, const Vector& Ju, const Vector& w0, Matrix* H) const;
   const Problem& problem_;

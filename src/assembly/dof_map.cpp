@@ -79,4 +79,12 @@ double DofMap::value(const Vector& u, int node, int component) const {
   return s;
 }
 
+bool DofMap::operator==(const DofMap& other) const {
+  if (node_offset_ != other.node_offset_ || full_owner_ != other.full_owner_ || free_owner_ != other.free_owner_ ||
+      full_to_free_ != other.full_to_free_ || transformation_.nonZeros() != other.transformation_.nonZeros())
+    return false;
+  const SparseMatrix difference = transformation_ - other.transformation_;
+  return difference.norm() == 0;
+}
+
 }  // namespace modalcal

@@ -224,15 +224,14 @@ bool ends_on_the_whole_model(Objective& objective, const Vector& end, double spa
 
 namespace detail {
 
-ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingOptions& options) {
+ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingOptions& options, Matrix span) {
   const double dofs = objective.system().num_dofs();
   if (!(options.refit_span_share * dofs >= 1)) return minimize_reduced(objective, p0, options.refit);
-  Matrix span;
-  try {
-    span = objective.span_at(p0);
-  } catch (const std::runtime_error&) {
-    return minimize_reduced(objective, p0, options.refit);  // it fails there too, with its reason
-  }
+  if (span.size() == 0) try {
+      span = objective.span_at(p0);
+    } catch (const std::runtime_error&) {
+      return minimize_reduced(objective, p0, options.refit);  // it fails there too, with its reason
+    }
   if (span.cols() > options.refit_span_share * dofs) return minimize_reduced(objective, p0, options.refit);
   objective.set_span(std::move(span));
   ReducedSummary walk = minimize_reduced(objective, p0, options.refit);
@@ -251,6 +250,28 @@ ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingO
   return rest;
 }
 
+StepSpan::StepSpan(Objective& ranked, const Vector& calibrated, const RankingOptions& options)
+    : ranked_(ranked), calibrated_(calibrated) {
+  const double dofs = ranked.system().num_dofs();
+  if (!(options.refit_span_share * dofs >= 1)) return;
+  try {
+    span_ = ranked.span_at(calibrated);
+  } catch (const std::runtime_error&) {
+    return;  // each refit tries its own
+  }
+  if (span_.cols() > options.refit_span_share * dofs) span_ = Matrix();
+}
+
+Matrix StepSpan::for_refit(const Objective& refit, const Vector& p0) {
+  if (span_.size() == 0 || !(refit.system().dof_map() == ranked_.system().dof_map())) return Matrix();
+  const std::lock_guard<std::mutex> one_at_a_time(turn_);
+  try {
+    return ranked_.extend_span(span_, calibrated_, refit.system(), p0);
+  } catch (const std::runtime_error&) {
+    return Matrix();
+  }
+}
+
 }  // namespace detail
 
 namespace {
@@ -258,7 +279,8 @@ namespace {
 /// One refit (every calibration parameter free, the effect started at its first-order value or
 /// its declared start), as a TaskMap result: the optimizer's outcome, then whether the refitted
 /// model could be evaluated, and its misfit.
-std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, const RankingOptions& options) {
+std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, const RankingOptions& options,
+                            detail::StepSpan* step) {
   const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
   const EffectCandidate& c = ranked.candidate;
   double start = c.initial.value_or(ranked.predicted_value);
@@ -268,7 +290,7 @@ std::string refit_candidate(const Problem& problem, const RankedEffect& ranked, 
   Objective refit_objective(with, options.refit_objective());
   Vector p0 = ranked.parameters;  // the first-order estimate of every parameter
   p0[np] = start;
-  const ReducedSummary refit = detail::refit_walk(refit_objective, p0, options);
+  const ReducedSummary refit = detail::refit_walk(refit_objective, p0, options, step->for_refit(refit_objective, p0));
   TaskCodec outcome;
   outcome.put(static_cast<double>(static_cast<int>(refit.status)));
   outcome.put(static_cast<double>(refit.iterations));
@@ -517,14 +539,14 @@ std::vector<RankedEffect> predict(const Problem& problem, const Vector& calibrat
 /// start), through the options' TaskMap, each judged by its likelihood-ratio test against the
 /// critical value.
 void refit_chosen(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
-                  const std::vector<size_t>& choices, std::vector<RankedEffect>* screened) {
+                  const std::vector<size_t>& choices, detail::StepSpan* step, std::vector<RankedEffect>* screened) {
   const Eigen::Index np = static_cast<Eigen::Index>(problem.parameters.size());
   std::vector<size_t> chosen;
   for (size_t k : choices)
     if ((*screened)[k].predicted_reduction > 0 || (*screened)[k].candidate.initial) chosen.push_back(k);
   const TaskMap& map = options.task_map ? options.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> outcomes =
-      map(chosen.size(), [&](size_t i) { return refit_candidate(problem, (*screened)[chosen[i]], options); });
+      map(chosen.size(), [&](size_t i) { return refit_candidate(problem, (*screened)[chosen[i]], options, step); });
   for (size_t i = 0; i < chosen.size(); ++i) {
     RankedEffect& ranked = (*screened)[chosen[i]];
     TaskCodec outcome(outcomes[i]);
@@ -603,7 +625,7 @@ void add_neighbours(const std::vector<RankedEffect>& screened, size_t start, int
 /// effect the first-order prediction does not rank the places of one kind reliably, so each
 /// round lets a kind's best walk one neighbourhood on towards where the refits fit best.
 void climb_neighbours(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
-                      std::vector<RankedEffect>* screened) {
+                      detail::StepSpan* step, std::vector<RankedEffect>* screened) {
   std::vector<size_t> climbed;
   for (int round = 0; round < options.neighbour_rounds; ++round) {
     std::vector<size_t> chosen;
@@ -612,19 +634,19 @@ void climb_neighbours(const Problem& problem, const RankingOptions& options, con
       climbed.push_back(start);
     }
     if (chosen.empty()) return;
-    refit_chosen(problem, options, ranking, chosen, screened);
+    refit_chosen(problem, options, ranking, chosen, step, screened);
   }
 }
 
 /// Refits of the best predictions (refit_choices, add_place_refits, add_kind_refits), then of
 /// the best refits' neighbours (climb_neighbours), each judged by its likelihood-ratio test.
 void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
-                std::vector<RankedEffect>* screened) {
+                detail::StepSpan* step, std::vector<RankedEffect>* screened) {
   std::vector<size_t> choices = refit_choices(*screened, options.refits);
   add_place_refits(problem.model, *screened, options, &choices);
   add_kind_refits(*screened, options, &choices);
-  refit_chosen(problem, options, ranking, choices, screened);
-  climb_neighbours(problem, options, ranking, screened);
+  refit_chosen(problem, options, ranking, choices, step, screened);
+  climb_neighbours(problem, options, ranking, step, screened);
 }
 /// The standard error of the effect's value in `best`'s refit: the covariance of a noise-weighted
 /// least-squares estimate, (J^T J)^-1; NaN when its Jacobian cannot be had or is singular.
@@ -730,8 +752,8 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   ranking.noise_known = problem.measurement_noise && problem.measurement_noise->frequency > 0;
   Misfit before;
   Vector r;  // the residual at the calibrated point, of the model as it is (supports rigid)
+  Objective objective(problem, options.objective);  // kept: its solve there starts every refit's span
   {
-    Objective objective(problem, options.objective);
     const Evaluation e = objective.evaluate(calibrated);
     if (!e.ok) throw std::runtime_error("rank_effects: the calibrated point cannot be evaluated: " + e.message);
     before = misfit_of(objective, e, np, options.significance);
@@ -768,7 +790,8 @@ EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
   ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
-  refit_best(problem, options, ranking, &screened);
+  detail::StepSpan step(objective, calibrated, options);
+  refit_best(problem, options, ranking, &step, &screened);
   // Refitted first, the significant ones before the others, each by score; then the rest by
   // prediction.
   std::stable_sort(screened.begin(), screened.end(), [](const RankedEffect& a, const RankedEffect& b) {

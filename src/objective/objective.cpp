@@ -592,28 +592,48 @@ void Objective::set_span(Matrix basis) {
 
 bool Objective::in_span() const { return workspace_->span.size() != 0; }
 
-Matrix Objective::span_at(const Vector& p) {
-  set_span(Matrix());
-  const Evaluation e = evaluate(p, Need::Value);
-  if (!e.ok) throw std::runtime_error("Objective::span_at: " + e.message);
-  // (dK_j - lambda dM_j) u of each paired mode and parameter: their images under the
-  // factorization of K - sigma M at p, the last solve's, are the sensitivities but for the part
-  // in the modes computed and a factor near 1 on the rest (lambda << the modes beyond).
-  const int np = num_parameters();
-  Matrix rhs(system_->num_dofs(), static_cast<Eigen::Index>(e.pairs.size()) * np);
+Matrix Objective::mode_directions(const Evaluation& e, const ParametricSystem& system, const Vector& at,
+                                  int first) const {
+  // (dK_q - lambda dM_q) u of each paired mode and parameter q: their images under the
+  // factorization of K - sigma M at e's point, the last solve's, are the sensitivities but for
+  // the part in the modes computed and a factor near 1 on the rest (lambda << the modes beyond).
+  const int count = system.num_parameters() - first;
+  Matrix rhs(system_->num_dofs(), static_cast<Eigen::Index>(e.pairs.size()) * count);
   Eigen::Index column = 0;
   for (const PairedMode& pair : e.pairs)
-    for (int j = 0; j < np; ++j) {
+    for (int q = first; q < system.num_parameters(); ++q) {
       Vector dKu, dMu;
-      system_->derivative_times(p, j, e.modal.modes.col(pair.model), &dKu, &dMu);
+      system.derivative_times(at, q, e.modal.modes.col(pair.model), &dKu, &dMu);
       rhs.col(column++) = dKu - e.modal.eigenvalues[pair.model] * dMu;
     }
   const Matrix corrections = solver_->solve_factorized(rhs);
-  Matrix U(system_->num_dofs(), e.modal.rigid_modes.cols() + e.modal.modes.cols());
-  U << e.modal.rigid_modes, e.modal.modes;
   Matrix C(system_->num_dofs(), 2 * corrections.cols());
   C << corrections, solver_->solve_factorized(detail::symmetric_times(workspace_->M, corrections));
-  return extend_m_orthonormal(workspace_->M, U, std::move(C));
+  return C;
+}
+
+Evaluation Objective::whole_model_evaluation(const Vector& p, const char* caller) {
+  set_span(Matrix());
+  Evaluation e = evaluate(p, Need::Value);
+  if (!e.ok) throw std::runtime_error(std::string("Objective::") + caller + ": " + e.message);
+  return e;
+}
+
+Matrix Objective::span_at(const Vector& p) {
+  const Evaluation e = whole_model_evaluation(p, "span_at");
+  Matrix U(system_->num_dofs(), e.modal.rigid_modes.cols() + e.modal.modes.cols());
+  U << e.modal.rigid_modes, e.modal.modes;
+  return extend_m_orthonormal(workspace_->M, U, mode_directions(e, *system_, p, 0));
+}
+
+Matrix Objective::extend_span(const Matrix& span, const Vector& p, const ParametricSystem& wider,
+                              const Vector& wider_p) {
+  if (span.rows() != system_->num_dofs() || !(wider.dof_map() == system_->dof_map()) ||
+      wider.num_parameters() <= num_parameters() || wider_p.size() != wider.num_parameters())
+    throw std::invalid_argument("Objective::extend_span: the wider model needs this model's DOFs, more parameters "
+                                "and a value for each, and the span columns of the model's size");
+  const Evaluation e = whole_model_evaluation(p, "extend_span");
+  return extend_m_orthonormal(workspace_->M, span, mode_directions(e, wider, wider_p, num_parameters()));
 }
 
 Evaluation Objective::evaluate(const Vector& p, Need need) {
