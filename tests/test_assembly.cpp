@@ -189,6 +189,30 @@ TEST(ParametricSystem, BlockedFormsEqualPerColumnForms) {
                std::invalid_argument);
 }
 
+// The terms projected on a span once give V^T K(p) V and V^T M(p) V at any p, the nominal and
+// a point where every parameter has moved (Young/Poisson coefficients included), to rounding.
+TEST(ParametricSystem, ProjectedTermsGiveTheProjectedMatricesAtEveryPoint) {
+  Fixture f = Load();
+  const int n = f.system->num_dofs(), r = 7;
+  Matrix V(n, r);
+  for (int c = 0; c < r; ++c) V.col(c) = Vector::LinSpaced(n, -1.0 - c, 2.0 + 0.7 * c).array().sin();
+  const std::vector<Matrix> projected = f.system->project_terms(V);
+  for (const Vector& p : {f.p0, Vector(f.p0 * 1.2)}) {
+    SparseMatrix K, M;
+    f.system->assemble(p, &K, &M);
+    Matrix Kr, Mr;
+    f.system->assemble_projected(p, projected, &Kr, &Mr);
+    const Matrix expected_K = V.transpose() * K * V, expected_M = V.transpose() * M * V;
+    EXPECT_LT((Kr - expected_K).norm(), 1e-12 * expected_K.norm());
+    EXPECT_LT((Mr - expected_M).norm(), 1e-12 * expected_M.norm());
+    EXPECT_EQ((Kr - Kr.transpose()).norm(), 0);
+  }
+  EXPECT_THROW(f.system->project_terms(Matrix(V.topRows(n - 1))), std::invalid_argument);
+  Matrix Kr, Mr;
+  EXPECT_THROW(f.system->assemble_projected(f.p0, std::vector<Matrix>(1, Matrix::Identity(r, r)), &Kr, &Mr),
+               std::invalid_argument);
+}
+
 TEST(ParametricSystem, MatricesAreSymmetricAndTotalMassIsExact) {
   Fixture f = Load();
   SparseMatrix K, M;

@@ -147,6 +147,18 @@ TEST(ModalSolver, ASpanHoldingTheModesGivesThemAndANearbySpanBoundsThemFromAbove
     EXPECT_LT(bounded.eigenvalues[j] - exact.eigenvalues[j], error * error * 4 * 100.0 / 1.0);
   }
   EXPECT_THROW(solver.solve_in_span(K, M, exact.modes.leftCols(4)), std::invalid_argument);
+  // The first modes' residuals say how far they are from eigenpairs; the other Ritz pairs' are
+  // not computed.
+  for (int j = 0; j < 5; ++j) EXPECT_LT(held.residuals[j], 1e-8);
+  for (int j = 5; j < 9; ++j) EXPECT_TRUE(std::isnan(held.residuals[j]));
+  // With V^T K V and V^T M V given (the projected assembly's), the same pairs.
+  const std::vector<Matrix> terms = system.project_terms(V);
+  Matrix Kr, Mr;
+  system.assemble_projected(Vector(), terms, &Kr, &Mr);
+  const ModalResult given = solver.solve_in_span(Kr, Mr, V, K, M);
+  ASSERT_EQ(given.status, EigenStatus::Successful) << given.message;
+  for (int j = 0; j < 9; ++j) EXPECT_CLOSE(given.eigenvalues[j], held.eigenvalues[j], 1e-10);
+  EXPECT_THROW(solver.solve_in_span(Matrix(Kr.topRows(8)), Mr, V, K, M), std::invalid_argument);
 }
 
 TEST(ModalSolver, BlockPathIsDeterministic) {

@@ -105,6 +105,15 @@ class MODALCAL_EXPORT ParametricSystem {
 
   /// K(p) and M(p) on pattern() (both triangles stored).
   void assemble(const Vector& p, SparseMatrix* K, SparseMatrix* M) const;
+  /// The terms projected on a span V (num_dofs() x r): \f$V^T K_t V\f$ or \f$V^T M_t V\f$ for each
+  /// term t, made once so that assemble_projected() gives \f$V^T K(p) V\f$ for any p from sums of
+  /// r x r matrices (the many evaluations of a Rayleigh-Ritz model, Objective::set_span). Costs
+  /// about one product of K with V plus, per term, a product over the DOFs it touches.
+  /// \throws std::invalid_argument if V's rows are not the DOFs.
+  std::vector<Matrix> project_terms(const Matrix& V) const;
+  /// \f$V^T K(p) V\f$ and \f$V^T M(p) V\f$ (symmetric) from project_terms(V).
+  /// \throws std::invalid_argument if `projected` is not one matrix per term.
+  void assemble_projected(const Vector& p, const std::vector<Matrix>& projected, Matrix* Kr, Matrix* Mr) const;
   /// \f$\partial K/\partial p_j\f$, \f$\partial M/\partial p_j\f$ on pattern().
   void assemble_derivative(const Vector& p, int j, SparseMatrix* dK, SparseMatrix* dM) const;
   /// \f$\partial^2 K/\partial p_j \partial p_k\f$, \f$\partial^2 M/\partial p_j \partial p_k\f$.

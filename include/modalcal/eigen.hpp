@@ -123,15 +123,22 @@ class MODALCAL_EXPORT ModalSolver {
   ModalResult solve(const SparseMatrix& K, const SparseMatrix& M);
   /// Rayleigh-Ritz in the span of V's columns: the pairs of \f$V^T K V\, y = \theta\, V^T M V\, y\f$
   /// as modes \f$u = V y\f$, every one of them (rigid and elastic split, normalized and signed as
-  /// solve() does; `residuals` say how far each is from an eigenpair of (K, M)). The Ritz values
-  /// bound the eigenvalues from above, and are exact when span(V) holds the modes. It costs
-  /// two sparse products with V's columns and a dense eigenproblem of V's width, and leaves the
-  /// factorization alone: for many nearby (K, M) that one span serves, e.g. the steps of a refit
-  /// (Objective::set_span). Fails (status, message) when fewer than options().num_modes elastic
-  /// Ritz pairs exist or V is dependent in M.
+  /// solve() does). `residuals` say how far the first options().num_modes elastic ones are from
+  /// eigenpairs of (K, M); the others' are NaN. The Ritz values bound the eigenvalues from above,
+  /// and are exact when span(V) holds the modes. It costs two sparse products with V's columns
+  /// and a dense eigenproblem of V's width, and leaves the factorization alone: for many nearby
+  /// (K, M) that one span serves, e.g. the steps of a refit (Objective::set_span). Fails
+  /// (status, message) when fewer than options().num_modes elastic Ritz pairs exist or V is
+  /// dependent in M.
   /// \throws std::invalid_argument if V's columns are not of K's size or fewer than
   /// num_modes + max_rigid_modes.
   ModalResult solve_in_span(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V) const;
+  /// The same with \f$K_r = V^T K V\f$ and \f$M_r = V^T M V\f$ given, as
+  /// ParametricSystem::assemble_projected makes them without a product of K with V; K and M then
+  /// serve only the first modes' residuals. \throws std::invalid_argument as above, or if Kr and Mr
+  /// are not square of V's width.
+  ModalResult solve_in_span(const Matrix& Kr, const Matrix& Mr, const Matrix& V, const SparseMatrix& K,
+                            const SparseMatrix& M) const;
   const ModalOptions& options() const { return options_; }
   void set_num_modes(int n);
   /// The most modes (elastic and rigid together) a solve can find: every one of a small model's,

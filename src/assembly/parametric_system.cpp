@@ -489,6 +489,52 @@ void ParametricSystem::assemble(const Vector& p, SparseMatrix* K, SparseMatrix* 
   accumulate(p, -1, -1, K, M);
 }
 
+std::vector<Matrix> ParametricSystem::project_terms(const Matrix& V) const {
+  if (V.rows() != num_dofs())
+    throw std::invalid_argument("ParametricSystem::project_terms: columns of length " + std::to_string(V.rows()) +
+                                " for " + std::to_string(num_dofs()) + " DOFs");
+  const Matrix Vt = V.transpose();  // row i of V is column i: contiguous
+  const int* rows = pattern_.innerIndexPtr();
+  std::vector<int> local(static_cast<size_t>(num_dofs()), -1);
+  std::vector<Matrix> projected;
+  projected.reserve(terms_.size());
+  for (const Term& t : terms_) {
+    // (K_t V)^T on the rows the term touches, then V^T K_t V from those rows alone.
+    std::vector<int> touched;
+    for (int position : t.positions)
+      if (local[rows[position]] < 0) {
+        local[rows[position]] = static_cast<int>(touched.size());
+        touched.push_back(rows[position]);
+      }
+    Matrix W = Matrix::Zero(V.cols(), static_cast<Eigen::Index>(touched.size()));
+    for (size_t i = 0; i < t.positions.size(); ++i)
+      W.col(local[rows[t.positions[i]]]) += t.values[i] * Vt.col(columns_[t.positions[i]]);
+    Matrix G(V.cols(), W.cols());
+    for (size_t r = 0; r < touched.size(); ++r) {
+      G.col(static_cast<Eigen::Index>(r)) = Vt.col(touched[r]);
+      local[touched[r]] = -1;
+    }
+    Matrix P = G * W.transpose();
+    projected.push_back(0.5 * (P + P.transpose()));
+  }
+  return projected;
+}
+
+void ParametricSystem::assemble_projected(const Vector& p, const std::vector<Matrix>& projected, Matrix* Kr,
+                                          Matrix* Mr) const {
+  if (projected.size() != terms_.size() || (!projected.empty() && projected.front().rows() != projected.front().cols()))
+    throw std::invalid_argument("ParametricSystem::assemble_projected: " + std::to_string(projected.size()) +
+                                " projected terms for " + std::to_string(terms_.size()) + " terms");
+  const Eigen::Index r = projected.empty() ? 0 : projected.front().rows();
+  Kr->setZero(r, r);
+  Mr->setZero(r, r);
+  const Vector theta = property_values(p);
+  for (size_t t = 0; t < terms_.size(); ++t) {
+    const double c = term_scale(terms_[t], theta, -1, -1);
+    if (c != 0.0) (terms_[t].mass ? *Mr : *Kr) += c * projected[t];
+  }
+}
+
 void ParametricSystem::assemble_derivative(const Vector& p, int j, SparseMatrix* dK, SparseMatrix* dM) const {
   check_parameter(j);
   accumulate(p, j, -1, dK, dM);

@@ -103,7 +103,10 @@ struct Eigenpairs {
   Vector lambda;
   Matrix vectors;
   // M and K times the vectors, when the solve has them already (Rayleigh-Ritz); empty otherwise.
+  // With mass_norms (u^T M u of every vector, a Ritz model's) they may hold only the first
+  // vectors, and the residuals are computed for those alone.
   Matrix mass_vectors, stiffness_vectors;
+  Vector mass_norms;
 };
 
 // Dense shift-invert: with A = K - sigma M = L L^T, the eigenvalues of L^{-1} M L^{-T} are
@@ -291,16 +294,17 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
   }
   // All products with M and K in one pass over each matrix.
   Matrix U = pairs.vectors;
-  Matrix MU = pairs.mass_vectors.size() != 0 ? pairs.mass_vectors : detail::symmetric_times(M, U);
+  const bool norms_given = pairs.mass_norms.size() == U.cols();
+  Matrix MU = pairs.mass_vectors.size() != 0 || norms_given ? pairs.mass_vectors : detail::symmetric_times(M, U);
   Matrix KU_given = pairs.stiffness_vectors;
   for (int k = 0; k < U.cols(); ++k) {
-    const double scale = 1.0 / std::sqrt(U.col(k).dot(MU.col(k)));
+    const double scale = 1.0 / std::sqrt(norms_given ? pairs.mass_norms[k] : U.col(k).dot(MU.col(k)));
     Eigen::Index imax;
     U.col(k).cwiseAbs().maxCoeff(&imax);
     const double sign = U(imax, k) < 0 ? -scale : scale;
     U.col(k) *= sign;
-    MU.col(k) *= sign;
-    if (KU_given.size() != 0) KU_given.col(k) *= sign;
+    if (k < MU.cols()) MU.col(k) *= sign;
+    if (k < KU_given.cols()) KU_given.col(k) *= sign;
   }
   const int ne = std::min(keep, static_cast<int>(elastic.size()));
   result->eigenvalues.resize(ne);
@@ -312,6 +316,10 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
   }
   const Matrix KU = KU_given.size() != 0 ? Matrix() : detail::symmetric_times(K, result->modes);
   for (int k = 0; k < ne; ++k) {
+    if (elastic[k] >= MU.cols()) {
+      result->residuals[k] = NAN;  // a Ritz pair beyond those whose products were made
+      continue;
+    }
     const double l = result->eigenvalues[k];
     const auto Mu = MU.col(elastic[k]);
     const Matrix& stiffness = KU.size() != 0 ? KU : KU_given;
@@ -347,22 +355,21 @@ double checked_scale(const SparseMatrix& K, const SparseMatrix& M, ModalResult* 
   return stiffness_mass_scale(K, M, trace_ratio);
 }
 
-// Every Ritz pair of (K, M) in span(V), ascending: V^T K V y = theta V^T M V y, the vectors V y.
-// Solved shift-inverted as the dense path solves, so that the lowest values keep their relative
-// accuracy however stiff the span's other directions are.
-bool ritz_pairs(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V, double sigma, ModalResult* result,
-                Eigenpairs* pairs) {
-  const Matrix KV = detail::symmetric_times(K, V), MV = detail::symmetric_times(M, V);
-  Matrix Kr = V.transpose() * KV, Mr = V.transpose() * MV;
-  Kr = 0.5 * (Kr + Kr.transpose()).eval();
-  Mr = 0.5 * (Mr + Mr.transpose()).eval();
+// Every Ritz pair of (K, M) in span(V), ascending, from Kr = V^T K V and Mr = V^T M V:
+// Kr y = theta Mr y, the vectors V y with y^T Mr y = 1. Solved shift-inverted as the dense path
+// solves, so that the lowest values keep their relative accuracy however stiff the span's other
+// directions are. K and M times the first `products` vectors, for their residuals.
+bool ritz_pairs(const Matrix& Kr, const Matrix& Mr, const Matrix& V, double sigma, int products,
+                const SparseMatrix& K, const SparseMatrix& M, ModalResult* result, Eigenpairs* pairs) {
   Eigenpairs reduced;
   if (!dense_eigenpairs(Kr.sparseView(), Mr.sparseView(), sigma, static_cast<int>(V.cols()), result, &reduced))
     return false;
   pairs->lambda = reduced.lambda;
+  pairs->mass_norms = (reduced.vectors.transpose() * Mr * reduced.vectors).diagonal();
   pairs->vectors = V * reduced.vectors;
-  pairs->mass_vectors = MV * reduced.vectors;
-  pairs->stiffness_vectors = KV * reduced.vectors;
+  const Matrix first = pairs->vectors.leftCols(std::min<Eigen::Index>(products, V.cols()));
+  pairs->mass_vectors = detail::symmetric_times(M, first);
+  pairs->stiffness_vectors = detail::symmetric_times(K, first);
   return true;
 }
 
@@ -478,18 +485,29 @@ ModalResult ModalSolver::solve(const SparseMatrix& K, const SparseMatrix& M) {
 }
 
 ModalResult ModalSolver::solve_in_span(const SparseMatrix& K, const SparseMatrix& M, const Matrix& V) const {
+  if (V.rows() != K.rows()) return solve_in_span(Matrix(), Matrix(), V, K, M);  // its message
+  const Matrix KV = detail::symmetric_times(K, V), MV = detail::symmetric_times(M, V);
+  return solve_in_span(V.transpose() * KV, V.transpose() * MV, V, K, M);
+}
+
+ModalResult ModalSolver::solve_in_span(const Matrix& Kr, const Matrix& Mr, const Matrix& V, const SparseMatrix& K,
+                                       const SparseMatrix& M) const {
   const auto t0 = std::chrono::steady_clock::now();
   ModalResult result;
-  if (V.rows() != K.rows() || V.cols() < options_.num_modes + options_.max_rigid_modes)
+  const int wanted = options_.num_modes + options_.max_rigid_modes;
+  if (V.rows() != K.rows() || V.cols() < wanted)
     throw std::invalid_argument("ModalSolver::solve_in_span: the span has " + std::to_string(V.cols()) +
                                 " columns of length " + std::to_string(V.rows()) + "; it needs at least " +
-                                std::to_string(options_.num_modes + options_.max_rigid_modes) + " of length " +
-                                std::to_string(K.rows()));
+                                std::to_string(wanted) + " of length " + std::to_string(K.rows()));
+  if (Kr.rows() != V.cols() || Kr.cols() != V.cols() || Mr.rows() != V.cols() || Mr.cols() != V.cols())
+    throw std::invalid_argument("ModalSolver::solve_in_span: the reduced matrices are not " +
+                                std::to_string(V.cols()) + " x " + std::to_string(V.cols()));
   const double scale = checked_scale(K, M, &result);
   if (!(scale > 0)) return result;
   Eigenpairs pairs;
   const double sigma = shift_ < 0 ? shift_ : -1e-6 * scale;
-  if (ritz_pairs(K, M, V, sigma, &result, &pairs) &&
+  const Matrix symmetric_Kr = 0.5 * (Kr + Kr.transpose()), symmetric_Mr = 0.5 * (Mr + Mr.transpose());
+  if (ritz_pairs(symmetric_Kr, symmetric_Mr, V, sigma, wanted, K, M, &result, &pairs) &&
       split_modes(K, M, pairs, options_.rigid_tolerance * scale, options_, static_cast<int>(V.cols()), &result))
     result.status = EigenStatus::Successful;
   result.seconds_total = seconds_since(t0);

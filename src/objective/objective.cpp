@@ -57,6 +57,7 @@ struct Objective::Workspace {
   // Objective::set_span: the span the evaluations solve in (empty: the whole model), and every
   // Ritz pair of the last solve there, the deflation basis that makes its linear solves exact.
   Matrix span;
+  std::vector<Matrix> span_terms;  // the system's terms projected on it
   ModalResult span_pairs;
 };
 
@@ -292,7 +293,9 @@ bool Objective::Evaluator::forward_solve() {
   if (ws_.span.size() == 0) {
     e_.modal = o_.solver_->solve(ws_.K, ws_.M);
   } else {
-    ws_.span_pairs = o_.solver_->solve_in_span(ws_.K, ws_.M, ws_.span);
+    Matrix Kr, Mr;
+    o_.system_->assemble_projected(p_, ws_.span_terms, &Kr, &Mr);
+    ws_.span_pairs = o_.solver_->solve_in_span(Kr, Mr, ws_.span, ws_.K, ws_.M);
     e_.modal = first_modes(ws_.span_pairs, ws_.modes_needed);
   }
   ++o_.forward_solves_;
@@ -586,6 +589,7 @@ void Objective::set_span(Matrix basis) {
     throw std::invalid_argument("Objective::set_span: columns of length " + std::to_string(basis.rows()) + " for " +
                                 std::to_string(system_->num_dofs()) + " DOFs");
   if (basis.size() == 0 && workspace_->span.size() == 0) return;  // on the whole model already
+  workspace_->span_terms = basis.size() != 0 ? system_->project_terms(basis) : std::vector<Matrix>();
   workspace_->span = std::move(basis);
   workspace_->has_solved = false;  // the last solve was in the other space
 }
