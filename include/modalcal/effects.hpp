@@ -254,10 +254,12 @@ struct MODALCAL_EXPORT RankingOptions {
   /// significance"). Range: (0, 1e-4].
   double refit_linear_tolerance = 1e-6;
   /// Walk a refit (and the loop's calibrations of its accepted effects) in a span of the model
-  /// (Objective::set_span, from Objective::span_at at its start) when that span has at most
-  /// `refit_span_share` of the model's DOFs, then check its end on the whole model: kept when
-  /// the two chi-squares agree to the refit's function tolerance and a Gauss-Newton step there
-  /// would gain less than that, else the refit goes on from there on the whole model. The span's
+  /// (Objective::set_span: a refit's from the ranked model's span at the calibrated point,
+  /// Objective::extend_span; a calibration's from Objective::span_at at its start) when that span
+  /// has at most `refit_span_share` of the model's DOFs, then check its end on the whole model:
+  /// kept when the two chi-squares agree to the refit's function tolerance and a Gauss-Newton step
+  /// there would gain less than that, else the walk goes on in the span at that end, checked
+  /// again, and then on the whole model. The span's
   /// steps need no factorization and no iterative solve, but cost products with its columns: a
   /// twentieth keeps them well below a whole-model step (LFU 0.7's span is a hundredth of its
   /// DOFs; on the portal frame, where it would be a thirteenth, it gained nothing; docs/design.md,

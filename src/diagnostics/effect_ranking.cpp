@@ -196,9 +196,11 @@ bool ends_on_the_whole_model(Objective& objective, const Vector& end, double spa
                              double* whole_value) {
   const Evaluation in_span = objective.evaluate(end, Need::Jacobian);
   objective.set_span(Matrix());
-  const Evaluation whole = objective.evaluate(end, Need::Gradient);
-  *whole_value = whole.ok ? whole.value : NAN;
-  if (!in_span.ok || !whole.ok || !(std::abs(whole.value - span_value) <= tolerance * whole.value)) return false;
+  const Evaluation value = objective.evaluate(end, Need::Value);
+  *whole_value = value.ok ? value.value : NAN;
+  if (!in_span.ok || !value.ok || !(std::abs(value.value - span_value) <= tolerance * value.value)) return false;
+  const Evaluation whole = objective.evaluate(end, Need::Gradient);  // the same solve, and its adjoint
+  if (!whole.ok) return false;
   const std::vector<Parameter>& parameters = objective.problem().parameters;
   std::vector<Eigen::Index> free;
   for (Eigen::Index j = 0; j < end.size(); ++j) {
@@ -220,33 +222,56 @@ bool ends_on_the_whole_model(Objective& objective, const Vector& end, double spa
   return predicted_decrease <= tolerance * whole.value;
 }
 
+/// One walk in a span from `*start` (`span`, else span_at(*start)), its end checked on the whole
+/// model. True with the walk in `walk` when the end is kept. Otherwise `walk` holds what the walk
+/// cost (nothing when no span was taken), `*start` moves to the walk's end if the whole model
+/// could be evaluated there, and the objective is on the whole model.
+bool walk_in_span(Objective& objective, Matrix span, const RankingOptions& options, Vector* start,
+                  ReducedSummary* walk) {
+  if (span.size() == 0) try {
+      span = objective.span_at(*start);
+    } catch (const std::runtime_error&) {
+      return false;  // the whole model's walk fails there too, with its reason
+    }
+  if (span.cols() > options.refit_span_share * objective.system().num_dofs()) return false;
+  objective.set_span(std::move(span));
+  *walk = minimize_reduced(objective, *start, options.refit);
+  double whole_value = NAN;
+  if (walk->final.size() == start->size() && std::isfinite(walk->final_objective) &&
+      ends_on_the_whole_model(objective, walk->final, walk->final_objective, options.refit.function_tolerance,
+                              &whole_value)) {
+    walk->final_objective = whole_value;
+    ++walk->forward_solves;
+    return true;
+  }
+  objective.set_span(Matrix());
+  if (std::isfinite(whole_value)) *start = walk->final;
+  return false;
+}
+
 }  // namespace
 
 namespace detail {
 
 ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingOptions& options, Matrix span) {
-  const double dofs = objective.system().num_dofs();
-  if (!(options.refit_span_share * dofs >= 1)) return minimize_reduced(objective, p0, options.refit);
-  if (span.size() == 0) try {
-      span = objective.span_at(p0);
-    } catch (const std::runtime_error&) {
-      return minimize_reduced(objective, p0, options.refit);  // it fails there too, with its reason
-    }
-  if (span.cols() > options.refit_span_share * dofs) return minimize_reduced(objective, p0, options.refit);
-  objective.set_span(std::move(span));
-  ReducedSummary walk = minimize_reduced(objective, p0, options.refit);
-  const bool usable = walk.final.size() == p0.size() && std::isfinite(walk.final_objective);
-  double whole_value = NAN;
-  if (usable &&
-      ends_on_the_whole_model(objective, walk.final, walk.final_objective, options.refit.function_tolerance,
-                              &whole_value)) {
-    walk.final_objective = whole_value;
-    ++walk.forward_solves;
-    return walk;
+  if (!(options.refit_span_share * objective.system().num_dofs() >= 1))
+    return minimize_reduced(objective, p0, options.refit);
+  // A span from far away (the step's, or the start's when the walk went far) can miss the whole
+  // model's minimum by more than the tolerance; the span at the walk's end, where the check has
+  // solved the whole model already, then costs only its block solves.
+  Vector start = p0;
+  ReducedSummary spent;
+  for (int round = 0; round < 2; ++round) {
+    ReducedSummary walk;
+    const Vector before = start;
+    const bool kept = walk_in_span(objective, round == 0 ? std::move(span) : Matrix(), options, &start, &walk);
+    add_counts(spent, &walk);
+    if (kept) return walk;
+    spent = walk;
+    if (start == before) break;  // no span, or no whole-model point to span from
   }
-  objective.set_span(Matrix());
-  ReducedSummary rest = minimize_reduced(objective, std::isfinite(whole_value) ? walk.final : p0, options.refit);
-  add_counts(walk, &rest);
+  ReducedSummary rest = minimize_reduced(objective, start, options.refit);
+  add_counts(spent, &rest);
   return rest;
 }
 

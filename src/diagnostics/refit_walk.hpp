@@ -13,8 +13,10 @@ namespace modalcal::detail {
 /// RankingOptions::refit_span_share of the model's DOFs (`span`, else `objective.span_at(p0)`),
 /// its end then checked on the whole model and kept when the two misfits agree to the refit's
 /// function tolerance and a Gauss-Newton step with the whole model's gradient would gain less
-/// than that; on the whole model from that end when not, or from p0 when no span is taken. The
-/// objective is left on the whole model. Counts (iterations, solves) are the walks' together.
+/// than that. When not, the walk goes on in the span at that end (span_at, whose forward solve
+/// the check has made), checked again; then on the whole model from the last end, or from p0
+/// when no span is taken. The objective is left on the whole model. Counts (iterations, solves)
+/// are the walks' together.
 ReducedSummary refit_walk(Objective& objective, const Vector& p0, const RankingOptions& options, Matrix span = {});
 
 /// The span the refits of one ranking share: the ranked model's at its calibrated point
