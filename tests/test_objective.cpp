@@ -9,9 +9,13 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
 #include "modalcal/gradient_check.hpp"
 #include "modalcal/objective.hpp"
 #include "modalcal/problem_file.hpp"
+#include "objective/deflated_solve.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -257,6 +261,65 @@ TEST(Objective, SensorAdjointJacobianEqualsDirectSensitivities) {
   ASSERT_TRUE(c.ok) << c.message;
   const bool more_parameters = p.size() > static_cast<int>(problem.sensors.size());
   EXPECT_EQ(c.linear_solves, more_parameters ? b.linear_solves : a.linear_solves);
+}
+
+// A chain of n masses on springs, fixed at one end: K tridiagonal, M diagonal (masses 1-2).
+std::pair<SparseMatrix, SparseMatrix> SpringChain(int n) {
+  std::vector<Eigen::Triplet<double>> k, m;
+  for (int i = 0; i < n; ++i) {
+    const double spring = 1.0 + 0.5 * std::sin(i), next = 1.0 + 0.5 * std::sin(i + 1);
+    k.emplace_back(i, i, spring + (i + 1 < n ? next : 0.0));
+    if (i + 1 < n) {
+      k.emplace_back(i, i + 1, -next);
+      k.emplace_back(i + 1, i, -next);
+    }
+    m.emplace_back(i, i, 1.5 + 0.5 * std::cos(3 * i));
+  }
+  SparseMatrix K(n, n), M(n, n);
+  K.setFromTriplets(k.begin(), k.end());
+  M.setFromTriplets(m.begin(), m.end());
+  return {K, M};
+}
+
+// Modes sharing right-hand sides (the sensor adjoints) solve in one Krylov space: the same
+// solutions as each mode's own conjugate gradients, the defining equations met, for a fraction
+// of the preconditioner's columns; and when the space may not grow, each mode on its own.
+TEST(DeflatedSolve, ModesSharingRightHandSidesShareOneKrylovSpace) {
+  const int n = 300, computed = 10, readings = 6;
+  const auto [K, M] = SpringChain(n);
+  Eigen::GeneralizedSelfAdjointEigenSolver<Matrix> dense{Matrix(K), Matrix(M)};
+  detail::DeflationBasis basis{dense.eigenvectors().leftCols(computed), dense.eigenvalues().head(computed), Matrix()};
+  basis.mass_modes = M * basis.modes;
+  const Eigen::LLT<Matrix> shifted{Matrix(K) - (-0.5 * basis.eigenvalues[0]) * Matrix(M)};
+  auto precondition = [&](const Matrix& rhs) { return Matrix(shifted.solve(rhs)); };
+  Matrix B = Matrix::Zero(n, readings);  // unit readings at a few DOFs, as sensors give
+  for (int c = 0; c < readings; ++c) B(37 * c + 11, c) = 1.0;
+  const std::vector<int> own = {0, 2, 3, 5, 6};
+  std::vector<int> own_of_column;
+  for (int mode : own) own_of_column.insert(own_of_column.end(), readings, mode);
+  const double tolerance = 1e-10;
+
+  const detail::DeflatedSolveResult alone = detail::solve_deflated(
+      K, M, basis, own_of_column, B.replicate(1, static_cast<Eigen::Index>(own.size())), precondition, tolerance, 300);
+  const detail::DeflatedSolveResult shared =
+      detail::solve_deflated_shared(K, M, basis, own, B, precondition, tolerance, 300, n);
+  ASSERT_TRUE(alone.converged && shared.converged) << alone.message << shared.message;
+  EXPECT_LT(testing::RelativeDifference(shared.solution, alone.solution), 1e-7);
+  EXPECT_LT(2 * shared.column_solves, alone.column_solves) << shared.column_solves << " against " << alone.column_solves;
+  for (size_t k = 0; k < own.size(); ++k) {  // (K - lambda M) x = b less its own mode's part; x M-orthogonal to it
+    const Eigen::Index first = static_cast<Eigen::Index>(k) * readings;
+    const Vector u = basis.modes.col(own[k]);
+    const Matrix X = shared.solution.middleCols(first, readings);
+    const Matrix rhs = B - M * u * (u.transpose() * B);
+    const Matrix residual = K * X - basis.eigenvalues[own[k]] * (M * X) - rhs;
+    EXPECT_LT(residual.norm(), 1e-8 * rhs.norm()) << "mode " << own[k];
+    EXPECT_LT((u.transpose() * M * X).norm(), 1e-8 * X.norm()) << "mode " << own[k];
+  }
+  const detail::DeflatedSolveResult narrow =
+      detail::solve_deflated_shared(K, M, basis, own, B, precondition, tolerance, 300, readings);
+  ASSERT_TRUE(narrow.converged) << narrow.message;
+  EXPECT_LT(testing::RelativeDifference(narrow.solution, alone.solution), 1e-7);
+  EXPECT_GT(narrow.column_solves, alone.column_solves) << "no fallback to each mode on its own";
 }
 
 TEST(Objective, ExactHessianMatchesCentralDifferencesOfTheGradient) {

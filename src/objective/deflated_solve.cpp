@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include "eigen/block_lanczos.hpp"  // symmetric_times
 
@@ -66,6 +70,95 @@ void project_out_modes(const DeflationBasis& basis, const std::vector<int>& colu
 }
 
 bool any_of(const std::vector<bool>& flags) { return std::find(flags.begin(), flags.end(), true) != flags.end(); }
+
+/// The Krylov space the shifts share (solve_deflated_shared): Q M-orthonormal and M-orthogonal to
+/// the modes, with M Q, K Q and G = Q^T K Q.
+struct SharedSpace {
+  Matrix Q, MQ, KQ, G;
+};
+
+/// X <- X M-orthogonal to the modes and to the space, twice (one pass of classical Gram-Schmidt
+/// leaves what rounding put back), the given M X updated to match.
+void project_out(const DeflationBasis& basis, const SharedSpace& space, Matrix* X, Matrix* MX) {
+  for (int pass = 0; pass < 2; ++pass) {
+    const Matrix on_modes = basis.mass_modes.transpose() * *X;
+    *X -= basis.modes * on_modes;
+    *MX -= basis.mass_modes * on_modes;
+    if (space.Q.cols() == 0) continue;
+    const Matrix on_space = space.MQ.transpose() * *X;
+    *X -= space.Q * on_space;
+    *MX -= space.MQ * on_space;
+  }
+}
+
+/// X's new directions, M-orthonormal: those whose share of X's M-norm survives the projection by
+/// more than 1e-6 (the rest lie in the space already, to rounding). Empty when none does.
+Matrix new_directions(const SparseMatrix& M, const DeflationBasis& basis, const SharedSpace& space, Matrix X,
+                      Matrix* MX) {
+  *MX = symmetric_times(M, X);
+  const double before = (X.transpose() * *MX).diagonal().maxCoeff();
+  for (int round = 0; round < 2; ++round) {  // the second round repairs what dividing by small norms lost
+    project_out(basis, space, &X, MX);
+    Eigen::SelfAdjointEigenSolver<Matrix> gram(X.transpose() * *MX);
+    std::vector<Eigen::Index> kept;
+    for (Eigen::Index k = 0; k < gram.eigenvalues().size(); ++k)
+      if (gram.eigenvalues()[k] > 1e-12 * before) kept.push_back(k);
+    Matrix scale(X.cols(), static_cast<Eigen::Index>(kept.size()));
+    for (size_t a = 0; a < kept.size(); ++a)
+      scale.col(static_cast<Eigen::Index>(a)) = gram.eigenvectors().col(kept[a]) / std::sqrt(gram.eigenvalues()[kept[a]]);
+    X = X * scale;
+    *MX = *MX * scale;
+    if (X.cols() == 0) break;
+  }
+  return X;
+}
+
+/// Adds Z's new directions to the space and K times them to K Q and G. False when there are none:
+/// the space holds every solution it can give.
+bool extend_space(const SparseMatrix& K, const SparseMatrix& M, const DeflationBasis& basis, const Matrix& Z,
+                  SharedSpace* space, Matrix* MZ) {
+  const Matrix X = new_directions(M, basis, *space, Z, MZ);
+  if (X.cols() == 0) return false;
+  const Matrix KX = symmetric_times(K, X);
+  const Eigen::Index q = space->Q.cols(), b = X.cols();
+  Matrix G(q + b, q + b);
+  G.topLeftCorner(q, q) = space->G;
+  G.topRightCorner(q, b) = space->Q.transpose() * KX;
+  G.bottomLeftCorner(b, q) = G.topRightCorner(q, b).transpose();
+  G.bottomRightCorner(b, b) = 0.5 * (X.transpose() * KX + KX.transpose() * X);
+  space->G = std::move(G);
+  auto append = [&](Matrix* to, const Matrix& columns) {
+    to->conservativeResize(X.rows(), q + b);
+    to->rightCols(b) = columns;
+  };
+  append(&space->Q, X);
+  append(&space->MQ, *MZ);
+  append(&space->KQ, KX);
+  return true;
+}
+
+/// Each shift's Galerkin solution on the space, (G - shift I) Y = Q^T R, in `Y`; true when every
+/// residual R - (K - shift M) Q Y is within `target`. A shift at which G - shift I is not positive
+/// definite (a mode in the space that should have been computed) gives `message`.
+bool galerkin_solutions(const SharedSpace& space, const Matrix& R, const Vector& shifts, const Vector& target,
+                        std::vector<Matrix>* Y, std::string* message) {
+  const Matrix QR = space.Q.transpose() * R;
+  bool converged = true;
+  Y->resize(static_cast<size_t>(shifts.size()));
+  for (Eigen::Index k = 0; k < shifts.size(); ++k) {
+    Eigen::LLT<Matrix> shifted(space.G - shifts[k] * Matrix::Identity(space.G.rows(), space.G.cols()));
+    if (shifted.info() != Eigen::Success) {
+      *message = "K - lambda M is not positive definite on the deflated space: an eigenvalue below lambda = " +
+                 std::to_string(shifts[k]) + " was not computed";
+      return false;
+    }
+    (*Y)[static_cast<size_t>(k)] = shifted.solve(QR);
+    const Matrix& y = (*Y)[static_cast<size_t>(k)];
+    const Matrix residual = R - space.KQ * y + shifts[k] * (space.MQ * y);
+    for (Eigen::Index c = 0; c < R.cols() && converged; ++c) converged = residual.col(c).norm() <= target[c];
+  }
+  return converged;
+}
 
 }  // namespace
 
@@ -148,6 +241,49 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
   if (!out.converged)
     out.message = "deflated conjugate gradients did not reach the tolerance in " + std::to_string(max_iterations) +
                   " iterations; compute more extra modes (objective option extra_modes)";
+  return out;
+}
+
+DeflatedSolveResult solve_deflated_shared(const SparseMatrix& K, const SparseMatrix& M, const DeflationBasis& basis,
+                                          const std::vector<int>& own, const Matrix& B,
+                                          const std::function<Matrix(const Matrix&)>& precondition,
+                                          double tolerance, int max_iterations, Eigen::Index max_columns) {
+  const Eigen::Index s = B.cols(), m = static_cast<Eigen::Index>(own.size());
+  std::vector<int> own_of_column;  // the layout of the result, B once per own[k]
+  for (int mode : own) own_of_column.insert(own_of_column.end(), static_cast<size_t>(s), mode);
+  Vector shifts(m), shift_of_column(s * m);
+  for (Eigen::Index k = 0; k < m; ++k) shifts[k] = basis.eigenvalues[own[static_cast<size_t>(k)]];
+  for (Eigen::Index c = 0; c < s * m; ++c) shift_of_column[c] = basis.eigenvalues[own_of_column[static_cast<size_t>(c)]];
+
+  const Matrix coefficients = basis.modes.transpose() * B;
+  DeflatedSolveResult out;
+  out.solution = modal_part(basis, own_of_column, shift_of_column, coefficients.replicate(1, m));
+  const Matrix R = B - basis.mass_modes * coefficients;
+  Vector target(s);
+  for (Eigen::Index c = 0; c < s; ++c) target[c] = tolerance * std::max(B.col(c).norm(), 1e-300);
+  bool done = true;
+  for (Eigen::Index c = 0; c < s; ++c) done = done && R.col(c).norm() <= target[c];
+
+  SharedSpace space;
+  std::vector<Matrix> Y(static_cast<size_t>(m), Matrix::Zero(0, s));
+  Matrix Z = R, MZ = R;  // MZ: what the next block's preconditioner is applied to
+  while (!done && out.iterations < max_iterations && space.Q.cols() + s <= max_columns && s * m > 0) {
+    Z = precondition(MZ);
+    out.column_solves += static_cast<int>(Z.cols());
+    ++out.iterations;
+    if (!extend_space(K, M, basis, Z, &space, &MZ)) break;
+    done = galerkin_solutions(space, R, shifts, target, &Y, &out.message);
+    if (!out.message.empty()) return out;
+  }
+  if (!done) {  // the space would grow too large: each shift on its own
+    DeflatedSolveResult alone = solve_deflated(K, M, basis, own_of_column, B.replicate(1, m), precondition,
+                                               tolerance, max_iterations);
+    alone.column_solves += out.column_solves;
+    return alone;
+  }
+  for (Eigen::Index k = 0; k < m && space.Q.cols() > 0; ++k)
+    out.solution.middleCols(k * s, s) += space.Q * Y[static_cast<size_t>(k)];
+  out.converged = true;
   return out;
 }
 

@@ -44,6 +44,24 @@ DeflatedSolveResult solve_deflated(const SparseMatrix& K, const SparseMatrix& M,
                                    const std::function<Matrix(const Matrix&)>& precondition, double tolerance,
                                    int max_iterations);
 
+/// The solves of solve_deflated for right-hand sides that several shifts share: for each
+/// own[k], (K - lambda_own[k] M) X_k = B, with B.cols() columns each; the solution's columns are
+/// X_0 | X_1 | ... in that order, as solve_deflated's for B repeated once per own[k].
+///
+/// With the preconditioner P = (K - sigma M)^{-1}, the preconditioned operator of shift lambda is
+/// P (K - lambda M) = I + (sigma - lambda) T with T = P M: every shift's conjugate-gradient space
+/// is the same Krylov space of T from P B (on the complement of the modes). It is built once, a
+/// block of B.cols() columns per iteration, M-orthonormal; each shift's solution is the Galerkin
+/// solution on it, which is what conjugate gradients reach in that space (they minimize the same
+/// (K - lambda M)-norm of the error over it). The preconditioner thus sees B.cols() columns per
+/// iteration instead of own.size() times as many. The space is kept whole: when it would exceed
+/// `max_columns` columns before every residual meets the tolerance, the solves are left to
+/// solve_deflated (counted in the result).
+DeflatedSolveResult solve_deflated_shared(const SparseMatrix& K, const SparseMatrix& M, const DeflationBasis& basis,
+                                          const std::vector<int>& own, const Matrix& B,
+                                          const std::function<Matrix(const Matrix&)>& precondition,
+                                          double tolerance, int max_iterations, Eigen::Index max_columns);
+
 /// The same solves when the basis spans the whole space they are solved in (every Ritz pair of a
 /// Rayleigh-Ritz model, Objective::set_span): then the modal part is the whole solution,
 /// x_c = sum over k != own[c] of u_k (u_k^T b_c) / (lambda_k - lambda_own[c]).

@@ -261,6 +261,8 @@ class Objective::Evaluator {
  private:
   const detail::DeflationBasis& deflation_basis();
   std::optional<Matrix> deflated_solve(const char* what, const std::vector<int>& own_columns, const Matrix& B);
+  std::optional<Matrix> deflated_solve_shared(const char* what, const std::vector<int>& own, const Matrix& B);
+  std::optional<Matrix> counted(const char* what, detail::DeflatedSolveResult solve);
   int num_measured() const { return static_cast<int>(problem_.measured.size()); }
   int num_model() const { return static_cast<int>(e_.modal.eigenvalues.size()); }
   int num_sensors() const { return static_cast<int>(problem_.sensors.size()); }
@@ -392,8 +394,7 @@ const detail::DeflationBasis& Objective::Evaluator::deflation_basis() {
   return basis_;
 }
 
-// A deflated solve (K - lambda_own M) X = B, counted; on failure the evaluation is marked failed
-// with `what` and the solver's reason, and nullopt is returned.
+// A deflated solve (K - lambda_own M) X = B (counted()).
 std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, const std::vector<int>& own_columns,
                                                            const Matrix& B) {
   if (ws_.span.size() != 0) {  // the Ritz pairs span the whole space solved in: no iteration
@@ -401,9 +402,30 @@ std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, con
     return detail::solve_in_basis(deflation_basis(), own_columns, B);
   }
   auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
-  detail::DeflatedSolveResult solve = detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B,
-                                                             precondition, o_.options_.linear_tolerance,
-                                                             o_.options_.max_linear_iterations);
+  return counted(what, detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B, precondition,
+                                              o_.options_.linear_tolerance, o_.options_.max_linear_iterations));
+}
+
+// As deflated_solve for B once per mode in `own` (the columns B's solves for own[0], then own[1],
+// ...), the right-hand sides' Krylov space shared by the modes (detail::solve_deflated_shared).
+std::optional<Matrix> Objective::Evaluator::deflated_solve_shared(const char* what, const std::vector<int>& own,
+                                                                  const Matrix& B) {
+  if (ws_.span.size() != 0) {
+    std::vector<int> own_columns;
+    for (int mode : own) own_columns.insert(own_columns.end(), static_cast<size_t>(B.cols()), mode);
+    return deflated_solve(what, own_columns, B.replicate(1, static_cast<Eigen::Index>(own.size())));
+  }
+  // The space's Q, M Q and K Q at most 2^23 doubles each (64 MiB): beyond, each mode on its own.
+  const Eigen::Index max_columns = (Eigen::Index{1} << 23) / std::max<Eigen::Index>(1, B.rows());
+  auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
+  return counted(what, detail::solve_deflated_shared(ws_.K, ws_.M, deflation_basis(), own, B, precondition,
+                                                     o_.options_.linear_tolerance, o_.options_.max_linear_iterations,
+                                                     max_columns));
+}
+
+// A solve's solution, its column solves counted; on failure the evaluation is marked failed with
+// `what` and the solver's reason, and nullopt is returned.
+std::optional<Matrix> Objective::Evaluator::counted(const char* what, detail::DeflatedSolveResult solve) {
   e_.linear_solves += solve.column_solves;
   if (solve.converged) return std::move(solve.solution);
   e_.ok = false;
@@ -496,21 +518,18 @@ std::vector<int> shape_rows(const Problem& problem) {
 // The shape rows of the Jacobian from sensor adjoints: P du/dp_j = P x_j - (u^T M_j u / 2) P u,
 // and P x_j = P S b_j = Z^T b_j with Z = S P^T (S the deflated inverse, symmetric) and
 // b_j = -(K_j - lambda M_j) u + dlambda_j M u, whose second part Z^T M u vanishes (S M u = 0).
-// One solve per sensor reading instead of per parameter.
+// One solve per sensor reading instead of per parameter, and the modes' solves of the same
+// readings share one Krylov space (deflated_solve_shared).
 bool Objective::Evaluator::sensor_adjoint_jacobian() {
   const int np = o_.num_parameters();
   const int ns = num_sensors();
   const std::vector<int> first_row = shape_rows(problem_);
-  std::vector<int> rows_of, own_columns;
+  std::vector<int> rows_of, own_modes;
   for (int i = 0; i < num_measured(); ++i)
     if (problem_.measured[i].has_shape_term()) rows_of.push_back(i);
-  const Matrix sensor_columns = Matrix(ws_.sensors.transpose());
-  Matrix adjoint_rhs(U().rows(), static_cast<Eigen::Index>(rows_of.size()) * ns);
-  for (size_t a = 0; a < rows_of.size(); ++a) {
-    adjoint_rhs.middleCols(a * ns, ns) = sensor_columns;
-    own_columns.insert(own_columns.end(), ns, rigid() + model_of_[rows_of[a]]);
-  }
-  const std::optional<Matrix> sensor_solve = deflated_solve("sensor adjoint solve", own_columns, adjoint_rhs);
+  for (int i : rows_of) own_modes.push_back(rigid() + model_of_[i]);
+  const std::optional<Matrix> sensor_solve =
+      deflated_solve_shared("sensor adjoint solve", own_modes, Matrix(ws_.sensors.transpose()));
   if (!sensor_solve) return false;
   for (size_t a = 0; a < rows_of.size(); ++a) {
     const int i = rows_of[a];
