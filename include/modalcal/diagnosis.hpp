@@ -100,6 +100,8 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   int first_step_alternatives = 2;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options), but for the function tolerance, 1e-5.
+  /// It walks in a span of the model, its end checked on the whole model, as the refits do
+  /// (RankingOptions::refit_span_share).
   ReducedOptions calibration = default_calibration_options();
   ResidualTestOptions test;
   bool localize = true;  ///< needs measured shapes; skipped (with a note) without

@@ -253,9 +253,10 @@ struct MODALCAL_EXPORT RankingOptions {
   /// than 1e-8 and leaves every refit's chi-square the same to 1e-5 (docs/design.md, "Refits and
   /// significance"). Range: (0, 1e-4].
   double refit_linear_tolerance = 1e-6;
-  /// Walk a refit (and the loop's calibrations of its accepted effects) in a span of the model
-  /// (Objective::set_span: a refit's from the ranked model's span at the calibrated point,
-  /// Objective::extend_span; a calibration's from Objective::span_at at its start) when that span
+  /// Walk a refit (and the diagnosis's calibrations: the first, and the loop's with its accepted
+  /// effects) in a span of the model (Objective::set_span: a refit's from the ranked model's span
+  /// at the calibrated point, Objective::extend_span; a calibration's from Objective::span_at at
+  /// its start) when that span
   /// has at most `refit_span_share` of the model's DOFs, then check its end on the whole model:
   /// kept when the two chi-squares agree to the refit's function tolerance and a Gauss-Newton step
   /// there would gain less than that, else the walk goes on in the span at that end, checked

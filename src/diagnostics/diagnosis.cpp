@@ -40,11 +40,10 @@ std::string verdict(const FitState& fit) {
 
 }  // namespace
 
-FitState evaluate_fit(const Problem& problem, const Vector& p, const ResidualTestOptions& options) {
-  if (p.size() != static_cast<int>(problem.parameters.size()))
-    throw std::invalid_argument("evaluate_fit: " + std::to_string(p.size()) + " values for " +
-                                std::to_string(problem.parameters.size()) + " parameters");
-  Objective objective(problem);
+namespace {
+
+/// evaluate_fit() with `objective`, of `problem`: no solve when it has solved its model at p.
+FitState fit_of(Objective& objective, const Problem& problem, const Vector& p, const ResidualTestOptions& options) {
   const Evaluation e = objective.evaluate(p);
   if (!e.ok) throw std::runtime_error("evaluate_fit: " + e.message);
   FitState fit;
@@ -58,6 +57,16 @@ FitState evaluate_fit(const Problem& problem, const Vector& p, const ResidualTes
     fit.statistic = e.residuals.squaredNorm();
   }
   return fit;
+}
+
+}  // namespace
+
+FitState evaluate_fit(const Problem& problem, const Vector& p, const ResidualTestOptions& options) {
+  if (p.size() != static_cast<int>(problem.parameters.size()))
+    throw std::invalid_argument("evaluate_fit: " + std::to_string(p.size()) + " values for " +
+                                std::to_string(problem.parameters.size()) + " parameters");
+  Objective objective(problem);
+  return fit_of(objective, problem, p, options);
 }
 
 std::string format_before_after(const Problem& after_problem, const FitState& before, const FitState& after,
@@ -663,10 +672,12 @@ Problem weighted_if(bool noise_known, const Problem& problem) {
 void calibrate_nominal(const Problem& weighted, const Vector& from, const DiagnosisOptions& options,
                        ReducedSummary* summary, FitState* fit) {
   Objective objective(weighted, options.ranking.objective);
-  *summary = minimize_reduced(objective, from, options.calibration);
+  RankingOptions walk = options.ranking;  // in a span, as the refits, with the calibration's own settings
+  walk.refit = options.calibration;
+  *summary = detail::refit_walk(objective, from, walk);
   if (summary->final.size() != from.size())
     throw std::runtime_error("diagnose: the calibration could not start: " + summary->message);
-  *fit = evaluate_fit(weighted, summary->final, options.test);
+  *fit = fit_of(objective, weighted, summary->final, options.test);  // the walk's check solved it there
 }
 
 /// The data moved by the finer mesh's change, with the allowance, and the calibration to start
