@@ -64,11 +64,13 @@ class TermAccumulator {
     if (!touched_[position]) {
       touched_[position] = 1;
       touched_list_.push_back(position);
+      sorted_ = false;
     }
   }
   // Moves the accumulated values of `term` out; call for every term, then reset().
   void extract(int term, std::vector<int>* positions, std::vector<double>* values) {
-    std::sort(touched_list_.begin(), touched_list_.end());
+    if (!sorted_) std::sort(touched_list_.begin(), touched_list_.end());  // once for the terms extracted together
+    sorted_ = true;
     positions->clear();
     values->clear();
     for (int p : touched_list_) {
@@ -88,6 +90,7 @@ class TermAccumulator {
   std::vector<std::vector<double>> values_;
   std::vector<char> touched_;
   std::vector<int> touched_list_;
+  bool sorted_ = true;
 };
 
 /// The block's elements grouped by the regions they lie in (region indices, sorted): elements
