@@ -262,7 +262,6 @@ class Objective::Evaluator {
   const detail::DeflationBasis& deflation_basis();
   std::optional<Matrix> deflated_solve(const char* what, const std::vector<int>& own_columns, const Matrix& B);
   std::optional<Matrix> deflated_solve_shared(const char* what, const std::vector<int>& own, const Matrix& B);
-  std::optional<Matrix> counted(const char* what, detail::DeflatedSolveResult solve);
   int num_measured() const { return static_cast<int>(problem_.measured.size()); }
   int num_model() const { return static_cast<int>(e_.modal.eigenvalues.size()); }
   int num_sensors() const { return static_cast<int>(problem_.sensors.size()); }
@@ -394,6 +393,20 @@ const detail::DeflationBasis& Objective::Evaluator::deflation_basis() {
   return basis_;
 }
 
+namespace {
+
+// A solve's solution, its column solves counted in `e`; on failure `e` is marked failed with
+// `what` and the solver's reason, and nullopt is returned.
+std::optional<Matrix> counted(const char* what, detail::DeflatedSolveResult solve, Evaluation* e) {
+  e->linear_solves += solve.column_solves;
+  if (solve.converged) return std::move(solve.solution);
+  e->ok = false;
+  e->message = std::string(what) + ": " + solve.message;
+  return std::nullopt;
+}
+
+}  // namespace
+
 // A deflated solve (K - lambda_own M) X = B (counted()).
 std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, const std::vector<int>& own_columns,
                                                            const Matrix& B) {
@@ -402,8 +415,10 @@ std::optional<Matrix> Objective::Evaluator::deflated_solve(const char* what, con
     return detail::solve_in_basis(deflation_basis(), own_columns, B);
   }
   auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
-  return counted(what, detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B, precondition,
-                                              o_.options_.linear_tolerance, o_.options_.max_linear_iterations));
+  return counted(what,
+                 detail::solve_deflated(ws_.K, ws_.M, deflation_basis(), own_columns, B, precondition,
+                                        o_.options_.linear_tolerance, o_.options_.max_linear_iterations),
+                 &e_);
 }
 
 // As deflated_solve for B once per mode in `own` (the columns B's solves for own[0], then own[1],
@@ -418,20 +433,13 @@ std::optional<Matrix> Objective::Evaluator::deflated_solve_shared(const char* wh
   // The space's Q, M Q and K Q at most 2^23 doubles each (64 MiB): beyond, each mode on its own.
   const Eigen::Index max_columns = (Eigen::Index{1} << 23) / std::max<Eigen::Index>(1, B.rows());
   auto precondition = [&](const Matrix& rhs) { return o_.solver_->solve_factorized(rhs); };
-  return counted(what, detail::solve_deflated_shared(ws_.K, ws_.M, deflation_basis(), own, B, precondition,
-                                                     o_.options_.linear_tolerance, o_.options_.max_linear_iterations,
-                                                     max_columns));
+  return counted(what,
+                 detail::solve_deflated_shared(ws_.K, ws_.M, deflation_basis(), own, B, precondition,
+                                               o_.options_.linear_tolerance, o_.options_.max_linear_iterations,
+                                               max_columns),
+                 &e_);
 }
 
-// A solve's solution, its column solves counted; on failure the evaluation is marked failed with
-// `what` and the solver's reason, and nullopt is returned.
-std::optional<Matrix> Objective::Evaluator::counted(const char* what, detail::DeflatedSolveResult solve) {
-  e_.linear_solves += solve.column_solves;
-  if (solve.converged) return std::move(solve.solution);
-  e_.ok = false;
-  e_.message = std::string(what) + ": " + solve.message;
-  return std::nullopt;
-}
 
 // The adjoint gradient; with Need::Jacobian or more also the eigenvalue rows of the Jacobian.
 bool Objective::Evaluator::gradient() {
