@@ -138,26 +138,31 @@ bool extend_space(const SparseMatrix& K, const SparseMatrix& M, const DeflationB
 }
 
 /// Each shift's Galerkin solution on the space, (G - shift I) Y = Q^T R, in `Y`; true when every
-/// residual R - (K - shift M) Q Y is within `target`. A shift at which G - shift I is not positive
-/// definite (a mode in the space that should have been computed) gives `message`.
+/// residual R - (K - shift M) Q Y is within `target`. The highest shift, the slowest to converge,
+/// goes first, and the first that falls short ends the round (its solutions are not used then).
+/// A shift at which G - shift I is not positive definite (a mode in the space that should have
+/// been computed) gives `message`.
 bool galerkin_solutions(const SharedSpace& space, const Matrix& R, const Vector& shifts, const Vector& target,
                         std::vector<Matrix>* Y, std::string* message) {
   const Matrix QR = space.Q.transpose() * R;
-  bool converged = true;
-  Y->resize(static_cast<size_t>(shifts.size()));
-  for (Eigen::Index k = 0; k < shifts.size(); ++k) {
+  std::vector<Eigen::Index> order(static_cast<size_t>(shifts.size()));
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<Eigen::Index>(k);
+  std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return shifts[a] > shifts[b]; });
+  Y->resize(order.size());
+  for (Eigen::Index k : order) {
     Eigen::LLT<Matrix> shifted(space.G - shifts[k] * Matrix::Identity(space.G.rows(), space.G.cols()));
     if (shifted.info() != Eigen::Success) {
       *message = "K - lambda M is not positive definite on the deflated space: an eigenvalue below lambda = " +
                  std::to_string(shifts[k]) + " was not computed";
       return false;
     }
-    (*Y)[static_cast<size_t>(k)] = shifted.solve(QR);
-    const Matrix& y = (*Y)[static_cast<size_t>(k)];
+    Matrix& y = (*Y)[static_cast<size_t>(k)];
+    y = shifted.solve(QR);
     const Matrix residual = R - space.KQ * y + shifts[k] * (space.MQ * y);
-    for (Eigen::Index c = 0; c < R.cols() && converged; ++c) converged = residual.col(c).norm() <= target[c];
+    for (Eigen::Index c = 0; c < R.cols(); ++c)
+      if (!(residual.col(c).norm() <= target[c])) return false;
   }
-  return converged;
+  return true;
 }
 
 }  // namespace
@@ -266,16 +271,16 @@ DeflatedSolveResult solve_deflated_shared(const SparseMatrix& K, const SparseMat
 
   SharedSpace space;
   std::vector<Matrix> Y(static_cast<size_t>(m), Matrix::Zero(0, s));
-  Matrix Z = R, MZ = R;  // MZ: what the next block's preconditioner is applied to
+  Matrix MZ = R;  // what the next block's preconditioner is applied to: R, then M times the last block
   while (!done && out.iterations < max_iterations && space.Q.cols() + s <= max_columns && s * m > 0) {
-    Z = precondition(MZ);
+    const Matrix Z = precondition(MZ);
     out.column_solves += static_cast<int>(Z.cols());
     ++out.iterations;
     if (!extend_space(K, M, basis, Z, &space, &MZ)) break;
     done = galerkin_solutions(space, R, shifts, target, &Y, &out.message);
     if (!out.message.empty()) return out;
   }
-  if (!done) {  // the space would grow too large: each shift on its own
+  if (!done) {  // the space may not grow further (max_columns, max_iterations) or cannot: each shift on its own
     DeflatedSolveResult alone = solve_deflated(K, M, basis, own_of_column, B.replicate(1, m), precondition,
                                                tolerance, max_iterations);
     alone.column_solves += out.column_solves;
