@@ -269,7 +269,7 @@ DeflatedSolveResult solve_deflated_shared(const SparseMatrix& K, const SparseMat
   bool done = true;
   for (Eigen::Index c = 0; c < s; ++c) done = done && R.col(c).norm() <= target[c];
 
-  SharedSpace space;
+  SharedSpace space{Matrix(B.rows(), 0), Matrix(B.rows(), 0), Matrix(B.rows(), 0), Matrix(0, 0)};
   std::vector<Matrix> Y(static_cast<size_t>(m), Matrix::Zero(0, s));
   Matrix MZ = R;  // what the next block's preconditioner is applied to: R, then M times the last block
   while (!done && out.iterations < max_iterations && space.Q.cols() + s <= max_columns && s * m > 0) {
