@@ -258,7 +258,7 @@ struct MODALCAL_EXPORT RankingOptions {
   /// at the calibrated point, Objective::extend_span; a calibration's from Objective::span_at at
   /// its start) when that span
   /// has at most `refit_span_share` of the model's DOFs, then check its end on the whole model:
-  /// kept when the two chi-squares agree to the refit's function tolerance and a Gauss-Newton step
+  /// kept when the two chi-squares agree to the walk's function tolerance and a Gauss-Newton step
   /// there would gain less than that, else the walk goes on in the span at that end, checked
   /// again, and then on the whole model. The span's
   /// steps need no factorization and no iterative solve, but cost products with its columns: a
