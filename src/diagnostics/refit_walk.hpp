@@ -9,9 +9,10 @@
 
 namespace modalcal::detail {
 
-/// Gauss-Newton (options.refit) from p0: in a span of the model when it has at most
+/// The walk options.refit sets (Gauss-Newton for a refit; the first calibration passes its own
+/// L-BFGS) from p0: in a span of the model when it has at most
 /// RankingOptions::refit_span_share of the model's DOFs (`span`, else `objective.span_at(p0)`),
-/// its end then checked on the whole model and kept when the two misfits agree to the refit's
+/// its end then checked on the whole model and kept when the two misfits agree to the walk's
 /// function tolerance and a Gauss-Newton step with the whole model's gradient would gain less
 /// than that. When not, the walk goes on in the span at that end (span_at, whose forward solve
 /// the check has made), checked again; then on the whole model from the last end, or from p0
