@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -144,21 +145,32 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
 
 namespace {
 
-/// Where the loop stands: the weighted problem with the effects so far as parameters after the
-/// problem's own, their values, and the residual there.
+/// A model of the loop: the weighted problem with some effects as parameters after the problem's
+/// own, and its objective (the ranking's options), which the state's fit solved. The screen of
+/// that state starts from the same solve, and the states that copy one share it.
+struct LoopModel {
+  LoopModel(Problem with_effects, const ObjectiveOptions& options)
+      : problem(std::move(with_effects)), objective(problem, options) {}
+  const Problem problem;
+  Objective objective;  // keeps a reference to `problem`, declared before it
+};
+
+/// Where the loop stands: the model with the effects so far, their values, and the residual there.
 struct LoopState {
-  Problem problem;
+  std::shared_ptr<LoopModel> model;
   std::vector<EffectCandidate> effects;
   Vector parameters;
   FitState fit;
+  const Problem& problem() const { return model->problem; }
 };
 
 LoopState make_state(const Problem& fitted, const std::vector<EffectCandidate>& effects, const Vector& p,
-                     const ResidualTestOptions& test) {
+                     const DiagnosisOptions& options) {
   const int np = static_cast<int>(fitted.parameters.size());
   std::vector<double> values(p.data() + np, p.data() + p.size());
-  LoopState state{problem_with_effects(fitted, effects, values), effects, p, {}};
-  state.fit = evaluate_fit(state.problem, p, test);
+  LoopState state{std::make_shared<LoopModel>(problem_with_effects(fitted, effects, values), options.ranking.objective),
+                  effects, p, {}};
+  state.fit = fit_of(state.model->objective, state.problem(), p, options.test);
   return state;
 }
 
@@ -187,14 +199,14 @@ std::optional<LoopState> refit_with(const Problem& fitted, const std::vector<Eff
                                     const Vector& p, const DiagnosisOptions& options) {
   const std::optional<Vector> calibrated = calibrate_with(fitted, effects, p, options);
   if (!calibrated) return std::nullopt;
-  return make_state(fitted, effects, *calibrated, options.test);
+  return make_state(fitted, effects, *calibrated, options);
 }
 
 /// The effects the model has from the start, with their first-order values at the calibration
 /// (declared starts where given), calibrated with the parameters.
 LoopState starting_state(const Problem& fitted, const std::vector<EffectCandidate>& effects, const Vector& calibrated,
                          const DiagnosisOptions& options) {
-  if (effects.empty()) return make_state(fitted, {}, calibrated, options.test);
+  if (effects.empty()) return make_state(fitted, {}, calibrated, options);
   RankingOptions screen = options.ranking;
   screen.refits = 0;
   const EffectRanking first_order = rank_effects(fitted, calibrated, effects, screen);
@@ -311,12 +323,12 @@ class ScreenMemo {
       if (e.names == names &&
           std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
         ++reused_;
-        if (candidates) *candidates = generate_candidates(state.problem, options.candidates);
+        if (candidates) *candidates = generate_candidates(state.problem(), options.candidates);
         return e.ranking;
       }
-    std::vector<EffectCandidate> screened = generate_candidates(state.problem, options.candidates);
-    entries_.push_back(
-        {names, state.fit.statistic, rank_effects(state.problem, state.parameters, screened, options.ranking)});
+    std::vector<EffectCandidate> screened = generate_candidates(state.problem(), options.candidates);
+    entries_.push_back({names, state.fit.statistic,
+                        detail::rank_effects_with(state.model->objective, state.parameters, screened, options.ranking)});
     if (candidates) *candidates = std::move(screened);
     return entries_.back().ranking;
   }
@@ -337,10 +349,10 @@ class ScreenMemo {
 void accept_effect(const Problem& fitted, size_t index, const DiagnosisOptions& options, LoopState* state,
                    Diagnosis* d) {
   const EffectRanking& ranking = d->rankings.back();
-  d->steps.push_back(step_accepting(ranking, state->problem.model, static_cast<int>(d->steps.size()) + 1, index));
+  d->steps.push_back(step_accepting(ranking, state->problem().model, static_cast<int>(d->steps.size()) + 1, index));
   std::vector<EffectCandidate> effects = state->effects;
   effects.push_back(ranking.effects[index].candidate);
-  *state = make_state(fitted, effects, ranking.effects[index].parameters, options.test);
+  *state = make_state(fitted, effects, ranking.effects[index].parameters, options);
 }
 
 /// One forward step: screens the candidates of the model as it now is and accepts the best
@@ -389,18 +401,30 @@ std::optional<LoopState> state_without(const Problem& fitted, const LoopState& s
                                        const DiagnosisOptions& options) {
   const Vector calibrated = TaskCodec(refit).get_vector();
   if (calibrated.size() == 0) return std::nullopt;
-  return make_state(fitted, effects_without(state, k), calibrated, options.test);
+  return make_state(fitted, effects_without(state, k), calibrated, options);
 }
 
-/// `state` without each of its effects in turn, the rest refitted (through the task map).
+/// One state without each of its effects in turn, the rest refitted: those made so far.
+struct StatesWithout {
+  std::vector<std::optional<LoopState>> states;  ///< nullopt where the calibration could not start
+  std::vector<bool> made;
+};
+
+/// `state` without each of its effects in turn, the rest refitted (through the task map), but for
+/// those `made` already holds.
 std::vector<std::optional<LoopState>> states_without_each(const Problem& fitted, const LoopState& state,
-                                                          const DiagnosisOptions& options) {
+                                                          const DiagnosisOptions& options, StatesWithout made = {}) {
+  made.states.resize(state.effects.size());
+  made.made.resize(state.effects.size(), false);
+  std::vector<size_t> missing;
+  for (size_t k = 0; k < state.effects.size(); ++k)
+    if (!made.made[k]) missing.push_back(k);
   const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> refits =
-      map(state.effects.size(), [&](size_t k) { return calibrate_without(fitted, state, k, options); });
-  std::vector<std::optional<LoopState>> without(state.effects.size());
-  for (size_t k = 0; k < state.effects.size(); ++k) without[k] = state_without(fitted, state, k, refits[k], options);
-  return without;
+      map(missing.size(), [&](size_t i) { return calibrate_without(fitted, state, missing[i], options); });
+  for (size_t i = 0; i < missing.size(); ++i)
+    made.states[missing[i]] = state_without(fitted, state, missing[i], refits[i], options);
+  return std::move(made.states);
 }
 
 /// The value of `state`'s effect `k`.
@@ -422,10 +446,13 @@ size_t accepted_on_bound(const Diagnosis& d, const LoopState& state) {
 /// dropped first, as a step would not have accepted it there; then, while the weakest effect in
 /// the model (the one whose removal raises the misfit least; the problem's own enabled effects
 /// included) is below the critical value at the stated level, it is dropped and the rest refitted.
-void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, Diagnosis* d) {
+/// `made`: the states without each effect of `*state` made already (by the exchange pass).
+void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, StatesWithout made,
+                   Diagnosis* d) {
   const double critical = chi_square_critical_value(options.ranking.significance, 1);
   while (!state->effects.empty()) {
-    std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options);
+    std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options, std::move(made));
+    made = {};
     size_t weakest = without.size();
     double weakest_increase = INFINITY;
     for (size_t k = 0; k < without.size(); ++k) {
@@ -465,19 +492,23 @@ const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name
 /// the rest refitted, and the candidates screened again with the others in the model; the best
 /// significant refit there replaces it when its score S beats what the accepted effect scores
 /// there (its own likelihood-ratio statistic less its kind's penalty), or whenever it has gone to a
-/// bound of its range.
-void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, ScreenMemo* memo,
-                   Diagnosis* d) {
+/// bound of its range. Returns the states without each effect it made of the state it leaves, for
+/// the backward pass.
+StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options,
+                            ScreenMemo* memo, Diagnosis* d) {
+  StatesWithout made;
   const size_t first = d->started_with.size();
-  if (state->effects.size() < first + 2) return;
+  if (state->effects.size() < first + 2) return made;
+  made.states.resize(state->effects.size());
+  made.made.resize(state->effects.size(), false);
   const Eigen::Index np = static_cast<Eigen::Index>(fitted.parameters.size());
   for (size_t k = first; k < state->effects.size(); ++k) {
     const DiagnosisStep* incumbent = step_that_added(*d, state->effects[k].name);
-    const std::optional<LoopState> refitted =
-        incumbent ? state_without(fitted, *state, k, calibrate_without(fitted, *state, k, options), options)
-                  : std::nullopt;
-    if (!refitted) continue;
-    const LoopState& without = *refitted;
+    if (!incumbent) continue;
+    made.states[k] = state_without(fitted, *state, k, calibrate_without(fitted, *state, k, options), options);
+    made.made[k] = true;
+    if (!made.states[k]) continue;
+    const LoopState& without = *made.states[k];
     const EffectRanking& ranking = memo->rank(without, options);
     const RankedEffect* best = acceptable(ranking);
     // One the later refits moved onto a bound stands in for something else: any acceptable
@@ -486,7 +517,7 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
     const double incumbent_score = lr_statistic(*d, without, *state) - incumbent->effect.kind_penalty;
     if (!best || best->candidate.name == state->effects[k].name || !(on_bound || best->score() > incumbent_score))
       continue;
-    DiagnosisStep exchange = step_accepting(ranking, without.problem.model, incumbent->step);
+    DiagnosisStep exchange = step_accepting(ranking, without.problem().model, incumbent->step);
     exchange.replaces = state->effects[k].name;
     exchange.replaced_score = incumbent_score;
     exchange.replaced_on_bound = on_bound;
@@ -498,8 +529,10 @@ void exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
     for (size_t i = 0, j = static_cast<size_t>(np); i < effects.size(); ++i)
       p[np + static_cast<Eigen::Index>(i)] = best->parameters[static_cast<Eigen::Index>(i == k ? without.parameters.size() : j++)];
     d->exchanges.push_back(std::move(exchange));
-    *state = make_state(fitted, effects, p, options.test);
+    *state = make_state(fitted, effects, p, options);
+    made.made.assign(made.made.size(), false);  // made for the state before the exchange
   }
+  return made;
 }
 
 std::string chi2_text(bool noise_known) { return noise_known ? "chi-square" : "2J"; }
@@ -764,8 +797,9 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
-  if (options.exchange) exchange_pass(fitted, &state, options, memo, d);
-  if (options.backward) backward_pass(fitted, &state, options, d);
+  StatesWithout made;
+  if (options.exchange) made = exchange_pass(fitted, &state, options, memo, d);
+  if (options.backward) backward_pass(fitted, &state, options, std::move(made), d);
   end_at(state, d);
   return WalkEnd::kEnd;
 }

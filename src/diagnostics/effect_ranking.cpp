@@ -764,21 +764,36 @@ std::string RankedEffect::summary() const {
   return text;
 }
 
-EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
-                           const std::vector<EffectCandidate>& candidates, const RankingOptions& options) {
+namespace {
+
+void require_valid(const Problem& problem, const Vector& calibrated, const RankingOptions& options) {
   std::string error;
   if (!options.IsValid(&error)) throw std::invalid_argument("RankingOptions: " + error);
-  const int np = static_cast<int>(problem.parameters.size());
-  if (calibrated.size() != np)
+  if (calibrated.size() != static_cast<Eigen::Index>(problem.parameters.size()))
     throw std::invalid_argument("rank_effects: " + std::to_string(calibrated.size()) + " calibrated values for " +
-                                std::to_string(np) + " parameters");
+                                std::to_string(problem.parameters.size()) + " parameters");
+}
+
+}  // namespace
+
+EffectRanking rank_effects(const Problem& problem, const Vector& calibrated,
+                           const std::vector<EffectCandidate>& candidates, const RankingOptions& options) {
+  require_valid(problem, calibrated, options);
+  Objective objective(problem, options.objective);
+  return detail::rank_effects_with(objective, calibrated, candidates, options);
+}
+
+EffectRanking detail::rank_effects_with(Objective& objective, const Vector& calibrated,
+                                        const std::vector<EffectCandidate>& candidates, const RankingOptions& options) {
+  const Problem& problem = objective.problem();
+  require_valid(problem, calibrated, options);
+  const int np = static_cast<int>(problem.parameters.size());
   const Clock::time_point screen_start = Clock::now();
   EffectRanking ranking;
   ranking.noise_known = problem.measurement_noise && problem.measurement_noise->frequency > 0;
   Misfit before;
   Vector r;  // the residual at the calibrated point, of the model as it is (supports rigid)
-  Objective objective(problem, options.objective);  // kept: its solve there starts every refit's span
-  {
+  {  // the objective's solve there, when it has made it, also starts every refit's span
     const Evaluation e = objective.evaluate(calibrated);
     if (!e.ok) throw std::runtime_error("rank_effects: the calibrated point cannot be evaluated: " + e.message);
     before = misfit_of(objective, e, np, options.significance);

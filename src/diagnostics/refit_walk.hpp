@@ -1,5 +1,6 @@
 #pragma once
-// Internal: a refit's Gauss-Newton walk, in a span of the model when that pays.
+// Internal: a refit's Gauss-Newton walk, in a span of the model when that pays; the ranking on an
+// objective the loop has solved already.
 
 #include <mutex>
 
@@ -39,5 +40,11 @@ class StepSpan {
   Matrix span_;
   std::mutex turn_;
 };
+
+/// rank_effects() on `objective`'s problem with `objective` (made with options.objective): no
+/// forward solve at `calibrated` when the objective last solved there, as the loop's fit of the
+/// state it screens has.
+EffectRanking rank_effects_with(Objective& objective, const Vector& calibrated,
+                                const std::vector<EffectCandidate>& candidates, const RankingOptions& options);
 
 }  // namespace modalcal::detail
