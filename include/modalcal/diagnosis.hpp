@@ -44,7 +44,8 @@ struct MODALCAL_EXPORT FitState {
   std::vector<PairedMode> pairs;  ///< measured and model modes, paired
   /// The residual test against the stated noise (absent without one).
   std::optional<ResidualTest> test;
-  /// \f$X^2\f$ of the test, or 2J of the problem's objective without a stated noise.
+  /// \f$X^2\f$ of the test, or 2J of the problem's objective without a stated noise (in a
+  /// diagnosis, the objective with DiagnosisOptions::ranking.objective's settings, as the screens').
   double statistic = 0;
 };
 

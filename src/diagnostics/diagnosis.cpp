@@ -146,13 +146,14 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
 namespace {
 
 /// A model of the loop: the weighted problem with some effects as parameters after the problem's
-/// own, and its objective (the ranking's options), which the state's fit solved. The screen of
-/// that state starts from the same solve, and the states that copy one share it.
+/// own, and its objective (the ranking's options; its misfit is the ranking's too), which the
+/// state's fit solved. The screen of that state starts from the same solve and then lets the
+/// objective go, so that no factorization outlives its use: the loop keeps many states.
 struct LoopModel {
   LoopModel(Problem with_effects, const ObjectiveOptions& options)
-      : problem(std::move(with_effects)), objective(problem, options) {}
+      : problem(std::move(with_effects)), objective(std::make_unique<Objective>(problem, options)) {}
   const Problem problem;
-  Objective objective;  // keeps a reference to `problem`, declared before it
+  std::unique_ptr<Objective> objective;  // refers to `problem`, declared before it
 };
 
 /// Where the loop stands: the model with the effects so far, their values, and the residual there.
@@ -170,7 +171,7 @@ LoopState make_state(const Problem& fitted, const std::vector<EffectCandidate>& 
   std::vector<double> values(p.data() + np, p.data() + p.size());
   LoopState state{std::make_shared<LoopModel>(problem_with_effects(fitted, effects, values), options.ranking.objective),
                   effects, p, {}};
-  state.fit = fit_of(state.model->objective, state.problem(), p, options.test);
+  state.fit = fit_of(*state.model->objective, state.problem(), p, options.test);
   return state;
 }
 
@@ -313,12 +314,14 @@ std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
 /// screen again: a new screen there would repeat it to within the refits' tolerance.
 class ScreenMemo {
  public:
-  /// The ranking of the candidates in `state`'s model, screened now or taken from an earlier screen.
-  /// `candidates`, when not null, receives the candidates of `state`'s model (generated once: the
-  /// diagnosis keeps the first screen's).
+  /// The ranking of the candidates in `state`'s model, screened now (from the solve of its fit) or
+  /// taken from an earlier screen; then the model's objective is let go. `candidates`, when not
+  /// null, receives the candidates of `state`'s model (generated once: the diagnosis keeps the
+  /// first screen's).
   const EffectRanking& rank(const LoopState& state, const DiagnosisOptions& options,
                             std::vector<EffectCandidate>* candidates = nullptr) {
     const std::vector<std::string> names = names_of(state.effects);
+    std::unique_ptr<Objective> objective = std::move(state.model->objective);
     for (const Entry& e : entries_)
       if (e.names == names &&
           std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
@@ -326,9 +329,10 @@ class ScreenMemo {
         if (candidates) *candidates = generate_candidates(state.problem(), options.candidates);
         return e.ranking;
       }
+    if (!objective) objective = std::make_unique<Objective>(state.problem(), options.ranking.objective);
     std::vector<EffectCandidate> screened = generate_candidates(state.problem(), options.candidates);
     entries_.push_back({names, state.fit.statistic,
-                        detail::rank_effects_with(state.model->objective, state.parameters, screened, options.ranking)});
+                        detail::rank_effects_with(*objective, state.parameters, screened, options.ranking)});
     if (candidates) *candidates = std::move(screened);
     return entries_.back().ranking;
   }
@@ -406,19 +410,19 @@ std::optional<LoopState> state_without(const Problem& fitted, const LoopState& s
 
 /// One state without each of its effects in turn, the rest refitted: those made so far.
 struct StatesWithout {
+  explicit StatesWithout(size_t effects = 0) : states(effects), known(effects, false) {}
   std::vector<std::optional<LoopState>> states;  ///< nullopt where the calibration could not start
-  std::vector<bool> made;
+  std::vector<bool> known;                       ///< states[k] is made
 };
 
 /// `state` without each of its effects in turn, the rest refitted (through the task map), but for
 /// those `made` already holds.
 std::vector<std::optional<LoopState>> states_without_each(const Problem& fitted, const LoopState& state,
-                                                          const DiagnosisOptions& options, StatesWithout made = {}) {
-  made.states.resize(state.effects.size());
-  made.made.resize(state.effects.size(), false);
+                                                          const DiagnosisOptions& options, StatesWithout made) {
+  if (made.states.size() != state.effects.size()) made = StatesWithout(state.effects.size());
   std::vector<size_t> missing;
   for (size_t k = 0; k < state.effects.size(); ++k)
-    if (!made.made[k]) missing.push_back(k);
+    if (!made.known[k]) missing.push_back(k);
   const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> refits =
       map(missing.size(), [&](size_t i) { return calibrate_without(fitted, state, missing[i], options); });
@@ -452,7 +456,7 @@ void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptio
   const double critical = chi_square_critical_value(options.ranking.significance, 1);
   while (!state->effects.empty()) {
     std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options, std::move(made));
-    made = {};
+    made = StatesWithout();
     size_t weakest = without.size();
     double weakest_increase = INFINITY;
     for (size_t k = 0; k < without.size(); ++k) {
@@ -496,17 +500,15 @@ const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name
 /// the backward pass.
 StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options,
                             ScreenMemo* memo, Diagnosis* d) {
-  StatesWithout made;
   const size_t first = d->started_with.size();
-  if (state->effects.size() < first + 2) return made;
-  made.states.resize(state->effects.size());
-  made.made.resize(state->effects.size(), false);
+  if (state->effects.size() < first + 2) return StatesWithout();
+  StatesWithout made(state->effects.size());
   const Eigen::Index np = static_cast<Eigen::Index>(fitted.parameters.size());
   for (size_t k = first; k < state->effects.size(); ++k) {
     const DiagnosisStep* incumbent = step_that_added(*d, state->effects[k].name);
     if (!incumbent) continue;
     made.states[k] = state_without(fitted, *state, k, calibrate_without(fitted, *state, k, options), options);
-    made.made[k] = true;
+    made.known[k] = true;
     if (!made.states[k]) continue;
     const LoopState& without = *made.states[k];
     const EffectRanking& ranking = memo->rank(without, options);
@@ -530,7 +532,7 @@ StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const Diagn
       p[np + static_cast<Eigen::Index>(i)] = best->parameters[static_cast<Eigen::Index>(i == k ? without.parameters.size() : j++)];
     d->exchanges.push_back(std::move(exchange));
     *state = make_state(fitted, effects, p, options);
-    made.made.assign(made.made.size(), false);  // made for the state before the exchange
+    made = StatesWithout(state->effects.size());  // those were of the state before the exchange
   }
   return made;
 }
@@ -850,7 +852,7 @@ void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagn
     other.map = d->map;
     LoopState state = start;
     accept_effect(fitted, index, options, &state, &other);
-    const WalkEnd end = walk(fitted, state, 1, options, memo, &other, d);
+    const WalkEnd end = walk(fitted, std::move(state), 1, options, memo, &other, d);
     if (end == WalkEnd::kJoined) {
       paths.push_back(path_of(*d));
       paths.back().joined = paths.back().first;
