@@ -440,7 +440,6 @@ std::optional<Matrix> Objective::Evaluator::deflated_solve_shared(const char* wh
                  &e_);
 }
 
-
 // The adjoint gradient; with Need::Jacobian or more also the eigenvalue rows of the Jacobian.
 bool Objective::Evaluator::gradient() {
   const int n = num_measured();
