@@ -991,8 +991,8 @@ void usage() {
       "  RankingOptions::refit_span_share (0: every refit on the whole model);\n"
       "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
       "  step's 40 best candidates and the 8 best of those that would count as right;\n"
-      "  --jobs: refits at a time, each in a thread, as diagnose --jobs (default 1: the cpu s column\n"
-      "  is then one core's);\n"
+      "  --jobs: refits at a time, each in a thread, and above 1 the two loops' first paths side by\n"
+      "  side, as diagnose --jobs (default 1: the cpu s column is then one core's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
@@ -1231,6 +1231,7 @@ int main(int argc, char** argv) {
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);
+          options.loops_side_by_side = args.jobs > 1;  // as diagnose run alone
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();

@@ -1330,6 +1330,37 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   EXPECT_NE(report.find("the diagnosis below is of the data as measured"), std::string::npos) << report;
 }
 
+TEST(Diagnosis, TheTwoLoopsSideBySideGiveTheDiagnosisOneAfterTheOtherGives) {
+  // The pad half as stiff, as above: the mesh check is significant, so the loop runs on the data
+  // corrected for the mesh and as measured. With their first paths side by side (the corrected
+  // data's in a second thread, and two refits at a time in each loop) every choice, score and
+  // fit must be the one the loops make one after the other: they share nothing.
+  const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.5"}, 3);
+  const Problem finer = FinerAssembly(problem);
+  DiagnosisOptions in_turn;
+  in_turn.finer_mesh = &finer;
+  DiagnosisOptions side_by_side = in_turn;
+  side_by_side.loops_side_by_side = true;
+  side_by_side.ranking.task_map = run_in_threads(2);
+  const Diagnosis a = diagnose(problem, problem.initial_values(), in_turn);
+  const Diagnosis b = diagnose(problem, problem.initial_values(), side_by_side);
+  const std::string report = format_diagnosis(problem, b);
+  ASSERT_TRUE(a.discretization && b.discretization) << report;
+  ASSERT_TRUE(b.discretization->significant) << "precondition: both loops run\n" << report;
+  EXPECT_EQ(b.discretization->corrected, a.discretization->corrected) << report;
+  EXPECT_EQ(b.discretization->other_data_first_path_only, a.discretization->other_data_first_path_only) << report;
+  // Rounding apart (BLAS may split its work differently when two threads call it at once).
+  const auto close = [](double x, double y) { return std::abs(x - y) <= 1e-6 * std::max(1.0, std::abs(x)); };
+  EXPECT_TRUE(close(b.discretization->score_corrected, a.discretization->score_corrected)) << report;
+  EXPECT_TRUE(close(b.discretization->score_as_measured, a.discretization->score_as_measured)) << report;
+  ASSERT_EQ(b.steps.size(), a.steps.size()) << report;
+  for (size_t k = 0; k < a.steps.size(); ++k)
+    EXPECT_EQ(b.steps[k].effect.candidate.name, a.steps[k].effect.candidate.name) << report;
+  EXPECT_EQ(b.accepted(), a.accepted()) << report;
+  EXPECT_TRUE(close(b.final_fit.statistic, a.final_fit.statistic)) << report;
+  EXPECT_EQ(b.screens, a.screens) << report;
+}
+
 TEST(Diagnosis, AnEffectTheLaterRefitsPutOnABoundIsDroppedAsAStandIn) {
   // The base lighter as a whole and its Poisson's ratio changed: the first step takes the mass of
   // one region of the base for both (declared here with the range [0.5, 0.9]; it refits to 0.58),

@@ -82,6 +82,14 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// for it (DiscretizationEstimate), so that no physical effect is accepted for what the mesh
   /// accounts for.
   bool correct_for_discretization = true;
+  /// When the loop runs on the data corrected for the mesh too (correct_for_discretization), walk
+  /// the first paths of both loops side by side, the corrected data's in a second thread of this
+  /// process: the same diagnosis as one after the other, sooner on two or more cores (the two
+  /// loops share nothing). Only with a ranking.task_map that may be called from two threads at
+  /// once (run_in_turn, run_in_threads; not an MPI job's, whose processes must reach every map in
+  /// the same order), and a BLAS whose thread count no one changes meanwhile. Off by default;
+  /// `diagnose` turns it on when it runs alone with more than one thread.
+  bool loops_side_by_side = false;
   /// The exchange pass, after the forward steps: with two or more accepted effects, take each out
   /// in turn, screen again with the others in the model, and replace it by the best significant
   /// refit there when that scores higher. A forward step chooses with the later effects missing,

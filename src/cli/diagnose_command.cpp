@@ -420,6 +420,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.exchange = !args.no_exchange;
   farm.set_threads(threads_for_jobs(args.jobs));
   options.ranking.task_map = farm.task_map();
+  options.loops_side_by_side = farm.size() == 1 && farm.threads() > 1;  // an MPI job's maps go in one order
   if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
@@ -514,7 +515,10 @@ int run_diagnose(const DiagnoseArgs& args) {
     std::printf("the refits across %d MPI ranks, rank 0 handing them out\n", farm.size());
   else if (farm.threads() > 1)
     std::printf("the refits up to %d at a time, in threads\n", farm.threads());
-  const Diagnosis d = diagnose(problem, start, options);
+  const Diagnosis d = [&] {
+    const OneBlasThreadWhile side_by_side(options.loops_side_by_side);  // no map may change it meanwhile
+    return diagnose(problem, start, options);
+  }();
   if (farm.is_root()) report_diagnosis(args, problem, d);  // rank 0 reports
   return 0;
 }
@@ -593,8 +597,10 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "grids of block regions screened, each twice as coarse as the one before (default 3)")
       ->check(CLI::Range(1, 6));
   cmd->add_option("--jobs", args->jobs,
-                  "refits run at a time, each in a thread (default: one per core; 1: one after another). The "
-                  "results do not depend on it. In an MPI job the ranks share the refits instead")
+                  "refits run at a time, each in a thread (default: one per core; 1: one after another); with more "
+                  "than one, the loops on the data as measured and corrected for the mesh also walk their first "
+                  "paths side by side. The results do not depend on it. In an MPI job the ranks share the refits "
+                  "instead")
       ->check(CLI::Range(1, 1024));
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->callback([args, exit_code] { *exit_code = run_diagnose(*args); });

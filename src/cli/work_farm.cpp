@@ -66,28 +66,6 @@ void one_blas_thread() {
   if (const SetBlasThreads set = blas_thread_setter()) set(1);
 }
 
-/// While it lives (and `active`), OpenBLAS runs each call in the calling thread; afterwards its
-/// earlier thread count is back. Set and restored around a threaded map, when no BLAS call runs.
-class OneBlasThreadWhile {
- public:
-  explicit OneBlasThreadWhile(bool active) : set_(blas_thread_setter()) {
-    using GetThreads = int (*)();
-    const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-    if (!active || !get || !set_) return;
-    before_ = get();
-    if (before_ > 1) set_(1);
-  }
-  ~OneBlasThreadWhile() {
-    if (before_ > 1) set_(before_);
-  }
-  OneBlasThreadWhile(const OneBlasThreadWhile&) = delete;
-  OneBlasThreadWhile& operator=(const OneBlasThreadWhile&) = delete;
-
- private:
-  SetBlasThreads set_ = nullptr;
-  int before_ = 0;
-};
-
 #ifdef MODALCAL_HAVE_MPI
 
 /// True when an MPI launcher (Open MPI's, or a PMI/PMIx one such as MPICH's or Slurm's) started
@@ -227,6 +205,18 @@ void finalize_mpi() {
 #endif  // MODALCAL_HAVE_MPI
 
 }  // namespace
+
+OneBlasThreadWhile::OneBlasThreadWhile(bool active) : set_(blas_thread_setter()) {
+  using GetThreads = int (*)();
+  const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+  if (!active || !get || !set_) return;
+  before_ = get();
+  if (before_ > 1) set_(1);
+}
+
+OneBlasThreadWhile::~OneBlasThreadWhile() {
+  if (before_ > 1) set_(before_);
+}
 
 int threads_for_jobs(int jobs) {
   return jobs > 0 ? jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));

@@ -23,6 +23,21 @@ namespace modalcal::cli {
 /// when it is 0.
 int threads_for_jobs(int jobs);
 
+/// While it lives (and `active`), OpenBLAS runs each call in the calling thread; afterwards its
+/// earlier thread count is back. Made and let go where no BLAS call runs: around a threaded map,
+/// or around work that calls BLAS from threads of its own (the diagnosis's loops side by side).
+class OneBlasThreadWhile {
+ public:
+  explicit OneBlasThreadWhile(bool active);
+  ~OneBlasThreadWhile();
+  OneBlasThreadWhile(const OneBlasThreadWhile&) = delete;
+  OneBlasThreadWhile& operator=(const OneBlasThreadWhile&) = delete;
+
+ private:
+  void (*set_)(int) = nullptr;
+  int before_ = 0;
+};
+
 class WorkFarm {
  public:
   /// The farm of this process: the MPI job's when the program was started by an MPI launcher

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
+#include <future>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -941,18 +942,29 @@ double loop_score(const Problem& data, const Diagnosis& d) {
 /// of a loop's cost, are walked first for the data whose first path ends lower; for the other
 /// data only when their first path ends lower still than that loop's end. Other paths replace a
 /// path only by one that ends lower, so what this gives up is the other data's paths gaining more
-/// than the two ends differ by (measured: docs/design.md, "The mesh's share").
+/// than the two ends differ by (measured: docs/design.md, "The mesh's share"). The two first paths
+/// run side by side with DiagnosisOptions::loops_side_by_side.
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
-  Loop measured_loop = walk_first_path(problem, weighted_if(d->noise_known, problem), options, &as_measured);
+  const bool noise_known = d->noise_known;
   std::optional<Loop> corrected_loop;
-  try {  // a loop on the corrected data that cannot run leaves the one on the data as measured
-    const Problem fitted = weighted_if(d->noise_known, corrected.first);
-    calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
-    corrected_loop = walk_first_path(problem, fitted, options, d);
-  } catch (const std::runtime_error&) {
-  }
+  auto first_path_corrected = [&] {
+    try {  // a loop on the corrected data that cannot run leaves the one on the data as measured
+      const Problem fitted = weighted_if(noise_known, corrected.first);
+      calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
+      corrected_loop = walk_first_path(problem, fitted, options, d);
+    } catch (const std::runtime_error&) {
+    }
+  };
+  // Declared after all it writes to, so that an exception here waits for it before they go.
+  std::future<void> corrected_beside;
+  if (options.loops_side_by_side) corrected_beside = std::async(std::launch::async, first_path_corrected);
+  Loop measured_loop = walk_first_path(problem, weighted_if(noise_known, problem), options, &as_measured);
+  if (corrected_beside.valid())
+    corrected_beside.get();
+  else
+    first_path_corrected();
   auto score_corrected = [&] { return corrected_loop ? loop_score(corrected.first, *d) : NAN; };
   auto score_as_measured = [&] { return loop_score(problem, as_measured); };
   auto walk_corrected = [&] {  // as above: a failure leaves the data as measured
