@@ -1231,7 +1231,7 @@ int main(int argc, char** argv) {
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);
-          options.loops_side_by_side = args.jobs > 1;  // as diagnose run alone
+          options.walk_side_by_side = args.jobs > 1;  // as diagnose run alone
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();

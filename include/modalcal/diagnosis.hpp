@@ -82,14 +82,15 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// for it (DiscretizationEstimate), so that no physical effect is accepted for what the mesh
   /// accounts for.
   bool correct_for_discretization = true;
-  /// When the loop runs on the data corrected for the mesh too (correct_for_discretization), walk
-  /// the first paths of both loops side by side, the corrected data's in a second thread of this
-  /// process: the same diagnosis as one after the other, sooner on two or more cores (the two
-  /// loops share nothing). Only with a ranking.task_map that may be called from two threads at
-  /// once (run_in_turn, run_in_threads; not an MPI job's, whose processes must reach every map in
-  /// the same order), and a BLAS whose thread count no one changes meanwhile. Off by default;
-  /// `diagnose` turns it on when it runs alone with more than one thread.
-  bool loops_side_by_side = false;
+  /// Walk side by side, in threads of this process: the first paths of the loops on the data as
+  /// measured and corrected for the mesh (correct_for_discretization), and a loop's other paths
+  /// (first_step_alternatives). The same diagnosis as one after the other, sooner on two or more
+  /// cores: those walks share nothing but what was there before them. Only with a
+  /// ranking.task_map that may be called from several threads at once (run_in_turn,
+  /// run_in_threads; not an MPI job's, whose processes must reach every map in the same order),
+  /// and a BLAS whose thread count no one changes meanwhile. Off by default; `diagnose` turns it
+  /// on when it runs alone with more than one thread.
+  bool walk_side_by_side = false;
   /// The exchange pass, after the forward steps: with two or more accepted effects, take each out
   /// in turn, screen again with the others in the model, and replace it by the best significant
   /// refit there when that scores higher. A forward step chooses with the later effects missing,
@@ -104,8 +105,10 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// region's mass scale: the same hypothesis), and keep the path that ends lowest in chi-square plus
   /// the first step's critical value and the effect's kind penalty (RankedEffect::kind_penalty)
   /// per kept effect (Diagnosis::paths). With several effects at once the best single effect may
-  /// stand in for them together, and one exchange at a time does not undo that. Each path costs
-  /// up to a loop. Range: >= 0 (0: the greedy path only).
+  /// stand in for them together, and one exchange at a time does not undo that. Each path is
+  /// walked as the greedy path's alternative: it stops where it reaches the greedy path's effects,
+  /// and takes again the greedy path's screens, not another alternative's. Each costs up to a
+  /// loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options), but for the function tolerance, 1e-5.

@@ -420,7 +420,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.exchange = !args.no_exchange;
   farm.set_threads(threads_for_jobs(args.jobs));
   options.ranking.task_map = farm.task_map();
-  options.loops_side_by_side = farm.size() == 1 && farm.threads() > 1;  // an MPI job's maps go in one order
+  options.walk_side_by_side = farm.size() == 1 && farm.threads() > 1;  // an MPI job's maps go in one order
   if (!args.quiet && farm.is_root()) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
@@ -516,7 +516,7 @@ int run_diagnose(const DiagnoseArgs& args) {
   else if (farm.threads() > 1)
     std::printf("the refits up to %d at a time, in threads\n", farm.threads());
   const Diagnosis d = [&] {
-    const OneBlasThreadWhile side_by_side(options.loops_side_by_side);  // no map may change it meanwhile
+    const OneBlasThreadWhile side_by_side(options.walk_side_by_side);  // no map may change it meanwhile
     return diagnose(problem, start, options);
   }();
   if (farm.is_root()) report_diagnosis(args, problem, d);  // rank 0 reports

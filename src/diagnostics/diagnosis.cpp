@@ -10,6 +10,7 @@
 #include <future>
 #include <memory>
 #include <stdexcept>
+#include <system_error>
 #include <utility>
 
 #include "objective/shape_misfit.hpp"
@@ -310,11 +311,16 @@ std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
 
 /// The screens one diagnosis ran, by the state they screened. An exchange screens the model without
 /// one effect, and without the last one taken that is the model the step before screened; another
-/// path's exchange often screens a model this path's steps did. A state with the same effects in the
-/// same order at the same fit (chi-square within 1e-3 relative, as joins() judges paths) gets that
-/// screen again: a new screen there would repeat it to within the refits' tolerance.
+/// path's exchange often screens a model the first path's steps did. A state with the same effects
+/// in the same order at the same fit (chi-square within 1e-3 relative, as joins() judges paths)
+/// gets that screen again: a new screen there would repeat it to within the refits' tolerance.
 class ScreenMemo {
  public:
+  ScreenMemo() = default;
+  /// A memo that also finds the screens of `earlier`, which must outlive it and take no screen
+  /// meanwhile: an other path's, which may run beside its sibling paths (walk_other_paths).
+  explicit ScreenMemo(const ScreenMemo* earlier) : earlier_(earlier) {}
+
   /// The ranking of the candidates in `state`'s model, screened now (from the solve of its fit) or
   /// taken from an earlier screen; then the model's objective is let go. `candidates`, when not
   /// null, receives the candidates of `state`'s model (generated once: the diagnosis keeps the
@@ -323,19 +329,22 @@ class ScreenMemo {
                             std::vector<EffectCandidate>* candidates = nullptr) {
     const std::vector<std::string> names = names_of(state.effects);
     std::unique_ptr<Objective> objective = std::move(state.model->objective);
-    for (const Entry& e : entries_)
-      if (e.names == names &&
-          std::abs(e.chi2 - state.fit.statistic) <= 1e-3 * std::max(1.0, e.chi2)) {
-        ++reused_;
-        if (candidates) *candidates = generate_candidates(state.problem(), options.candidates);
-        return e.ranking;
-      }
+    if (const EffectRanking* screened = find(names, state.fit.statistic)) {
+      ++reused_;
+      if (candidates) *candidates = generate_candidates(state.problem(), options.candidates);
+      return *screened;
+    }
     if (!objective) objective = std::make_unique<Objective>(state.problem(), options.ranking.objective);
     std::vector<EffectCandidate> screened = generate_candidates(state.problem(), options.candidates);
     entries_.push_back({names, state.fit.statistic,
                         detail::rank_effects_with(*objective, state.parameters, screened, options.ranking)});
     if (candidates) *candidates = std::move(screened);
     return entries_.back().ranking;
+  }
+  /// Takes in the screens and the count of reuses of `path`, a memo made on this one.
+  void absorb(ScreenMemo&& path) {
+    for (Entry& e : path.entries_) entries_.push_back(std::move(e));
+    reused_ += path.reused_;
   }
   int screened() const { return static_cast<int>(entries_.size()); }
   int reused() const { return reused_; }
@@ -346,8 +355,14 @@ class ScreenMemo {
     double chi2;
     EffectRanking ranking;
   };
+  const EffectRanking* find(const std::vector<std::string>& names, double chi2) const {
+    for (const Entry& e : entries_)
+      if (e.names == names && std::abs(e.chi2 - chi2) <= 1e-3 * std::max(1.0, e.chi2)) return &e.ranking;
+    return earlier_ ? earlier_->find(names, chi2) : nullptr;
+  }
   std::deque<Entry> entries_;  // a deque, so that the references rank() returns stay valid
   int reused_ = 0;
+  const ScreenMemo* earlier_ = nullptr;
 };
 
 /// Accepts the effect `index` of d's last ranking (an acceptable refit) as the next step.
@@ -837,33 +852,75 @@ std::vector<size_t> other_first_steps(const EffectRanking& ranking, int count) {
   return chosen;
 }
 
+/// An other path (walk_other_paths): its diagnosis, how its walk ended, and the screens it took.
+struct OtherPath {
+  Diagnosis d;
+  WalkEnd end = WalkEnd::kEnd;
+  ScreenMemo memo;
+};
+
+/// The path from the first ranking's effect `index`, walked from `start` as walk() walks given the
+/// greedy path `greedy` (`before_the_loop`: greedy as it was before), with the screens of
+/// `screened` (the greedy path's) and its own.
+OtherPath walk_other_path(const Problem& fitted, const LoopState& start, const Diagnosis& before_the_loop, size_t index,
+                          const DiagnosisOptions& options, const ScreenMemo& screened, const Diagnosis& greedy) {
+  OtherPath path{before_the_loop, WalkEnd::kEnd, ScreenMemo(&screened)};
+  path.d.rankings = {greedy.ranking};
+  path.d.ranking = greedy.ranking;
+  path.d.map = greedy.map;
+  LoopState state = start;
+  accept_effect(fitted, index, options, &state, &path.d);
+  path.end = walk(fitted, std::move(state), 1, options, &path.memo, &path.d, &greedy);
+  return path;
+}
+
+/// The paths from the first ranking's effects `others` (walk_other_path), in their order: side by
+/// side, all but the first in threads of their own, with DiagnosisOptions::walk_side_by_side; else
+/// one after the other. Each is judged against the greedy path only and takes no screen of
+/// another's, so they come out the same either way.
+std::vector<OtherPath> walk_each(const Problem& fitted, const LoopState& start, const Diagnosis& before_the_loop,
+                                 const std::vector<size_t>& others, const DiagnosisOptions& options,
+                                 const ScreenMemo& screened, const Diagnosis& greedy) {
+  auto walk_one = [&](size_t i) {
+    return walk_other_path(fitted, start, before_the_loop, others[i], options, screened, greedy);
+  };
+  std::vector<std::future<OtherPath>> beside;  // an exception below waits for these, then goes on
+  for (size_t i = 1; i < others.size() && options.walk_side_by_side; ++i) try {
+      beside.push_back(std::async(std::launch::async, walk_one, i));
+    } catch (const std::system_error&) {  // no thread to be had: the rest in this one
+      break;
+    }
+  std::vector<OtherPath> walked;
+  walked.push_back(walk_one(0));
+  for (size_t i = 1; i < others.size(); ++i) walked.push_back(i <= beside.size() ? beside[i - 1].get() : walk_one(i));
+  return walked;
+}
+
 /// The paths from the first ranking's next-best effects (DiagnosisOptions::first_step_alternatives),
 /// after the greedy path `d` walked from `start`; `before_the_loop` is d as it was before. The path
-/// that ends with the lowest score (path_score) is kept.
+/// that ends with the lowest score (path_score) is kept; on a tie, or with the same effects as a
+/// path before it, the earlier path.
 void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagnosis& before_the_loop,
                       const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d) {
   if (d->steps.empty() || !d->final_fit.test || (d->steps.size() < 2 && consistent_with_noise(d->final_fit))) return;
   const std::vector<size_t> others = other_first_steps(d->ranking, options.first_step_alternatives);
   if (others.empty()) return;
-  std::vector<DiagnosisPath> paths = {path_of(*d)};
-  for (size_t index : others) {
-    Diagnosis other = before_the_loop;
-    other.rankings = {d->ranking};
-    other.ranking = d->ranking;
-    other.map = d->map;
-    LoopState state = start;
-    accept_effect(fitted, index, options, &state, &other);
-    const WalkEnd end = walk(fitted, std::move(state), 1, options, memo, &other, d);
-    if (end == WalkEnd::kJoined) {
-      paths.push_back(path_of(*d));
-      paths.back().joined = paths.back().first;
-      paths.back().first = other.steps.front().effect.candidate.name;
-      paths.back().joined_after = static_cast<int>(other.steps.size());
+  std::vector<OtherPath> walked = walk_each(fitted, start, before_the_loop, others, options, *memo, *d);
+  const DiagnosisPath greedy = path_of(*d);
+  std::vector<DiagnosisPath> paths = {greedy};
+  for (OtherPath& path : walked) {
+    memo->absorb(std::move(path.memo));
+    if (path.end == WalkEnd::kJoined) {
+      paths.push_back(greedy);
+      paths.back().joined = greedy.first;
+      paths.back().first = path.d.steps.front().effect.candidate.name;
+      paths.back().joined_after = static_cast<int>(path.d.steps.size());
       continue;
     }
-    paths.push_back(path_of(other));
-    paths.back().no_second_step = end == WalkEnd::kNoSecondStep;
-    if (end == WalkEnd::kEnd && paths.back().score < path_score(*d) && !same_effects(other, *d)) *d = std::move(other);
+    paths.push_back(path_of(path.d));
+    paths.back().no_second_step = path.end == WalkEnd::kNoSecondStep;
+    if (path.end == WalkEnd::kEnd && paths.back().score < path_score(*d) && !same_effects(path.d, *d))
+      *d = std::move(path.d);
   }
   for (DiagnosisPath& path : paths) path.kept = path.first == d->steps.front().effect.candidate.name;
   d->paths = std::move(paths);
@@ -943,7 +1000,7 @@ double loop_score(const Problem& data, const Diagnosis& d) {
 /// data only when their first path ends lower still than that loop's end. Other paths replace a
 /// path only by one that ends lower, so what this gives up is the other data's paths gaining more
 /// than the two ends differ by (measured: docs/design.md, "The mesh's share"). The two first paths
-/// run side by side with DiagnosisOptions::loops_side_by_side.
+/// run side by side with DiagnosisOptions::walk_side_by_side.
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
@@ -959,7 +1016,10 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   };
   // Declared after all it writes to, so that an exception here waits for it before they go.
   std::future<void> corrected_beside;
-  if (options.loops_side_by_side) corrected_beside = std::async(std::launch::async, first_path_corrected);
+  if (options.walk_side_by_side) try {
+      corrected_beside = std::async(std::launch::async, first_path_corrected);
+    } catch (const std::system_error&) {  // no thread to be had: walked in turn below
+    }
   Loop measured_loop = walk_first_path(problem, weighted_if(noise_known, problem), options, &as_measured);
   if (corrected_beside.valid())
     corrected_beside.get();
