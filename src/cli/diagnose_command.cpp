@@ -598,9 +598,8 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(CLI::Range(1, 6));
   cmd->add_option("--jobs", args->jobs,
                   "refits run at a time, each in a thread (default: one per core; 1: one after another); with more "
-                  "than one, the loops on the data as measured and corrected for the mesh also walk their first "
-                  "paths side by side. The results do not depend on it. In an MPI job the ranks share the refits "
-                  "instead")
+                  "than one, the diagnosis's paths that do not depend on one another also walk side by side. "
+                  "The results do not depend on it. In an MPI job the ranks share the refits instead")
       ->check(CLI::Range(1, 1024));
   cmd->add_flag("--quiet", args->quiet, "no progress lines");
   cmd->callback([args, exit_code] { *exit_code = run_diagnose(*args); });

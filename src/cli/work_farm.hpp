@@ -25,7 +25,7 @@ int threads_for_jobs(int jobs);
 
 /// While it lives (and `active`), OpenBLAS runs each call in the calling thread; afterwards its
 /// earlier thread count is back. Made and let go where no BLAS call runs: around a threaded map,
-/// or around work that calls BLAS from threads of its own (the diagnosis's loops side by side).
+/// or around work that calls BLAS from threads of its own (the diagnosis's walks side by side).
 class OneBlasThreadWhile {
  public:
   explicit OneBlasThreadWhile(bool active);
