@@ -121,6 +121,31 @@ TEST(TaskMap, RunInThreadsKeepsTheOrderAndRethrowsTheLowestFailure) {
   EXPECT_THROW(run_in_threads(0), std::invalid_argument);
 }
 
+// Two calls of one map at once, from two threads (as the diagnosis's walks side by side make
+// them): together they never run more pieces at a time than the map's threads, and each call
+// gets its own results in order.
+TEST(TaskMap, CallsAtOnceShareTheMapsThreads) {
+  const TaskMap map = run_in_threads(2);
+  std::atomic<int> running{0}, most{0};
+  const auto piece = [&](size_t i) {
+    const int now = ++running;
+    for (int seen = most.load(); now > seen && !most.compare_exchange_weak(seen, now);) {
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    --running;
+    return std::to_string(i);
+  };
+  const std::vector<std::string> expected = {"0", "1", "2", "3", "4", "5", "6", "7"};
+  std::vector<std::string> other;
+  std::thread beside([&] { other = map(8, piece); });
+  const std::vector<std::string> mine = map(8, piece);
+  beside.join();
+  EXPECT_EQ(mine, expected);
+  EXPECT_EQ(other, expected);
+  EXPECT_GE(most.load(), 1);
+  EXPECT_LE(most.load(), 2);
+}
+
 // Six noisy tests of one bar, one 20 % denser, one data file that does not parse: across three
 // ranks (two at work) the campaign's runs and summary are the serial ones; its parts merged agree.
 /// Six noisy tests of one bar in DIR/data (unit1-6.yaml), unit6 20 % denser, and unit7.yaml, which

@@ -34,8 +34,11 @@ MODALCAL_EXPORT std::vector<std::string> run_in_turn(size_t n, const std::functi
 /// that what a caller computes from them does not depend on the number of threads. Every piece
 /// runs even when one fails; then the failure of the lowest index is rethrown. `work` must be
 /// safe to call concurrently: the diagnosis's refits are (each builds its own model, objective
-/// and factorizations). With threads = 1, or a single piece, it is run_in_turn(). When the
-/// system cannot start another thread, the pieces go to the threads already running.
+/// and factorizations). With threads = 1, or a single piece, the pieces run in the calling
+/// thread. When the system cannot start another thread, the pieces go to the threads already
+/// running. The map may be called from several threads at once (the diagnosis's walks side by
+/// side); `threads` then bounds the pieces of all those calls together, the others waiting for a
+/// place. So a piece must not call the same map: it could wait for a place it holds itself.
 ///
 /// Example: \code
 ///   const TaskMap map = run_in_threads(4);

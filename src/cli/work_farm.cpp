@@ -259,7 +259,7 @@ std::vector<std::string> WorkFarm::map_alone(size_t n, const std::function<std::
     return std::string();
   };
   const OneBlasThreadWhile one(threads_ > 1 && n > 1);
-  run_in_threads(std::max(1, threads_))(n, run_and_report);
+  in_threads_(n, run_and_report);
   return results_of(std::move(pieces));
 }
 

@@ -11,6 +11,7 @@
 // so that an MPI job may have more processes than cores. A process alone with several threads
 // keeps the same contract: results in index order, progress reported in index order.
 
+#include <algorithm>
 #include <functional>
 #include <string>
 #include <vector>
@@ -63,7 +64,11 @@ class WorkFarm {
   /// A process alone runs up to `threads` pieces of a map at a time, each in a thread
   /// (run_in_threads), with one BLAS thread each while they run, so that the pieces, not BLAS,
   /// share the cores. The ranks of an MPI job run one piece at a time each. Default 1.
-  void set_threads(int threads) { threads_ = threads; }
+  /// The pieces of maps called at once from several threads share the `threads` (run_in_threads).
+  void set_threads(int threads) {
+    threads_ = threads;
+    in_threads_ = run_in_threads(std::max(1, threads));
+  }
   /// The pieces of a map that run at a time in this process (1 in an MPI job).
   int threads() const { return size_ > 1 ? 1 : threads_; }
 
@@ -72,6 +77,7 @@ class WorkFarm {
   std::vector<std::string> map_alone(size_t n, const std::function<std::string(size_t)>& work,
                                      const std::function<void(size_t, const std::string&)>& on_result);
   int rank_ = 0, size_ = 1, threads_ = 1;
+  TaskMap in_threads_ = run_in_threads(1);
 };
 
 }  // namespace modalcal::cli

@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <system_error>
 #include <thread>
@@ -20,18 +23,55 @@ std::vector<std::string> run_in_turn(size_t n, const std::function<std::string(s
   return results;
 }
 
+namespace {
+
+/// The pieces one run_in_threads() map may run at a time, shared by every call of it: calls made
+/// at once from several threads (walks side by side) take turns within it.
+class PieceBudget {
+ public:
+  explicit PieceBudget(int pieces) : free_(pieces) {}
+  /// Runs work(i) once a place is free, and frees it again.
+  std::string run(const std::function<std::string(size_t)>& work, size_t i) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      freed_.wait(lock, [&] { return free_ > 0; });
+      --free_;
+    }
+    struct Release {
+      PieceBudget* budget;
+      ~Release() {
+        {
+          const std::lock_guard<std::mutex> lock(budget->mutex_);
+          ++budget->free_;
+        }
+        budget->freed_.notify_one();
+      }
+    } release{this};
+    return work(i);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable freed_;
+  int free_;
+};
+
+}  // namespace
+
 TaskMap run_in_threads(int threads) {
   if (threads < 1) throw std::invalid_argument("run_in_threads: threads = " + std::to_string(threads) + ": must be >= 1");
-  return [threads](size_t n, const std::function<std::string(size_t)>& work) {
+  auto budget = std::make_shared<PieceBudget>(threads);
+  return [threads, budget](size_t n, const std::function<std::string(size_t)>& work) {
+    const auto in_budget = [&](size_t i) { return budget->run(work, i); };
     const size_t workers = std::min(static_cast<size_t>(threads), n);
-    if (workers <= 1) return run_in_turn(n, work);
+    if (workers <= 1) return run_in_turn(n, in_budget);
     std::vector<std::string> results(n);
     std::vector<std::exception_ptr> failures(n);
     std::atomic<size_t> next{0};
     auto take_work = [&] {
       for (size_t i = next++; i < n; i = next++) {
         try {
-          results[i] = work(i);
+          results[i] = in_budget(i);
         } catch (...) {
           failures[i] = std::current_exception();
         }
