@@ -965,6 +965,7 @@ struct Args {
   bool print_diagnosis = false;
   double mesh_check = 1.5;  // as `diagnose --mesh-check`: the discretization estimate's finer mesh; 0: none
   int jobs = 1;             // refits at a time in threads (run_in_threads), as `diagnose --jobs`
+  bool walks_in_turn = false;  // as `diagnose --walks-in-turn`
   std::string command;
 };
 
@@ -975,7 +976,7 @@ void usage() {
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N]\n"
-      "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--region-levels N]\n"
+      "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
       "                    [--refit-span-share X]\n"
       "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
@@ -991,8 +992,9 @@ void usage() {
       "  RankingOptions::refit_span_share (0: every refit on the whole model);\n"
       "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
       "  step's 40 best candidates and the 8 best of those that would count as right;\n"
-      "  --jobs: refits at a time, each in a thread, and above 1 the two loops' first paths side by\n"
-      "  side, as diagnose --jobs (default 1: the cpu s column is then one core's);\n"
+      "  --jobs: refits at a time, each in a thread, and above 1 the paths that do not depend on one\n"
+      "  another side by side (--walks-in-turn: not), as diagnose (default 1: the cpu s column is then\n"
+      "  one core's);\n"
       "  --mesh-check: the diagnosis's discretization estimate on a mesh R times finer, as diagnose's\n"
       "  default (1.5); 0 leaves it out;\n"
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
@@ -1083,6 +1085,7 @@ int main(int argc, char** argv) {
       else if (a == "--no-kind-prior") args.equal_kind_prior = false;
       else if (a == "--stop-when-consistent") args.stop_when_consistent = true;
       else if (a == "--jobs") args.jobs = std::stoi(next());
+      else if (a == "--walks-in-turn") args.walks_in_turn = true;
       else if (a == "--print-diagnosis") args.print_diagnosis = true;
       else if (a == "--noise-freq") args.noise.frequency = std::stod(next());
       else if (a == "--noise-shape") args.noise.shape = std::stod(next());
@@ -1231,7 +1234,7 @@ int main(int argc, char** argv) {
           options.ranking.equal_kind_prior = args.equal_kind_prior;
           options.stop_when_consistent = args.stop_when_consistent;
           options.ranking.task_map = run_in_threads(args.jobs);
-          options.walk_side_by_side = args.jobs > 1;  // as diagnose run alone
+          options.walk_side_by_side = args.jobs > 1 && !args.walks_in_turn;  // as diagnose run alone
           options.test.significance = args.significance;
           if (ctx.check) options.finer_mesh = &*ctx.check;
           const auto t0 = Clock::now();
