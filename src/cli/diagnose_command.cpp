@@ -525,6 +525,17 @@ int run_diagnose(const DiagnoseArgs& args) {
   return 0;
 }
 
+/// The flags that leave out or reorder parts of the loop's walk.
+void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
+  cmd->add_flag("--walks-in-turn", args->walks_in_turn,
+                "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
+                "refits in threads: slower, and about half the peak memory (LFU 0.7: 0.9 GB against 1.7)");
+  cmd->add_flag("--no-exchange", args->no_exchange,
+                "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
+  cmd->add_flag("--no-backward", args->no_backward,
+                "keep every accepted effect (no backward pass dropping those the others explain)");
+}
+
 }  // namespace
 
 void register_diagnose_command(CLI::App& app, int* exit_code) {
@@ -572,13 +583,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "the first step's next-best effects and keep the path that ends lowest (default " +
                       std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
       ->check(non_negative_number());
-  cmd->add_flag("--walks-in-turn", args->walks_in_turn,
-                "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
-                "refits in threads: slower, and about half the peak memory (LFU 0.7: 0.9 GB against 1.7)");
-  cmd->add_flag("--no-exchange", args->no_exchange,
-                "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
-  cmd->add_flag("--no-backward", args->no_backward,
-                "keep every accepted effect (no backward pass dropping those the others explain)");
+  add_walk_flags(cmd, args.get());
   cmd->add_option("--add", args->add,
                   "start from the model with this effect, e.g. joint2.kry or point_mass@top:mass (repeatable)");
   cmd->add_option("--json", args->json, "write the diagnosis as JSON to this file")->check(OutputFile());
