@@ -11,3 +11,10 @@ if(Cholmod_FOUND AND NOT TARGET Cholmod::Cholmod)
     INTERFACE_INCLUDE_DIRECTORIES "${CHOLMOD_INCLUDE_DIR}"
     INTERFACE_LINK_LIBRARIES "${SUITESPARSECONFIG_LIBRARY}")
 endif()
+# Debian's CHOLMOD runs OpenMP regions of its own; src/eigen/cholmod_factor.cpp keeps them in the
+# calling thread, which needs the OpenMP runtime's omp_set_max_active_levels (not -fopenmp).
+find_package(OpenMP COMPONENTS C)
+if(Cholmod_FOUND AND OpenMP_C_FOUND)
+  set_property(TARGET Cholmod::Cholmod APPEND PROPERTY INTERFACE_LINK_LIBRARIES ${OpenMP_C_LIBRARIES})
+  set_property(TARGET Cholmod::Cholmod APPEND PROPERTY INTERFACE_COMPILE_DEFINITIONS MODALCAL_CHOLMOD_OPENMP)
+endif()

@@ -7,6 +7,11 @@
 #include <cmath>
 #include <vector>
 
+#if defined(MODALCAL_CHOLMOD_OPENMP) && __has_include(<omp.h>)
+#include <omp.h>
+#define MODALCAL_TEST_OPENMP 1
+#endif
+
 #include "eigen/block_lanczos.hpp"
 #include "eigen/cholmod_factor.hpp"
 #include "modalcal/assembly.hpp"
@@ -312,6 +317,26 @@ Pencil UnitChain(int n) {
   k_diag[n - 1] = 1.0;
   return Tridiagonal(k_diag, Vector::Constant(n - 1, -1.0), Vector::Ones(n));
 }
+
+#ifdef MODALCAL_TEST_OPENMP
+// The factorization keeps CHOLMOD's OpenMP regions in the calling thread, and gives the thread
+// back its own setting: a caller's OpenMP code runs as it would have.
+TEST(CholmodFactor, LeavesTheCallersOpenMpSettingAsItFoundIt) {
+  const Pencil p = UnitChain(50);
+  const int before = omp_get_max_active_levels();
+  omp_set_max_active_levels(3);
+  detail::CholmodFactor factor(p.K);
+  int column = -1;
+  EXPECT_TRUE(factor.factorize(p.K, p.M, 0.0, &column));
+  EXPECT_EQ(omp_get_max_active_levels(), 3);
+  omp_set_max_active_levels(before);
+  // x = K^{-1} b solves K x = b to rounding: the factor is the chain's.
+  const Vector b = Vector::Ones(50);
+  Vector x(50);
+  factor.solve(b.data(), x.data());
+  EXPECT_LT((p.K * x - b).norm(), 1e-10 * b.norm() * 50 * 50);
+}
+#endif
 
 TEST(BlockLanczos, ThickRestartsKeepConverging) {
   const int n = 600;

@@ -4,9 +4,35 @@
 #include <cstring>
 #include <stdexcept>
 
+#if defined(MODALCAL_CHOLMOD_OPENMP) && __has_include(<omp.h>)
+#include <omp.h>
+#define MODALCAL_SERIAL_OPENMP_REGIONS 1
+#endif
+
 namespace modalcal::detail {
 
 namespace {
+
+/// CHOLMOD (SuiteSparse 5, as Debian 12 builds it) runs parts of its supernodal factorization in
+/// OpenMP regions of a fixed four threads (CHOLMOD_OMP_NUM_THREADS, fixed when it was compiled; no
+/// environment variable but OMP_THREAD_LIMIT changes it). Beside the threads the tool runs itself,
+/// and on fewer cores than four, those regions cost more than they give: on two cores, the
+/// forward solve at 6.6e4 DOFs took 3.06 s with them and 2.53 s without, at 3.1e5 DOFs 26.8 s
+/// and 26.5 s, and an LFU diagnosis spent a tenth of its CPU time waking their threads
+/// (docs/benchmarks.md, "CHOLMOD's OpenMP regions"). So a factorization runs them in the calling
+/// thread: a maximum of 0 active levels makes every parallel region inactive. The setting is the
+/// calling thread's own, and is restored afterwards, so a caller's own OpenMP code is left alone.
+class SerialOpenMpRegions {
+ public:
+#ifdef MODALCAL_SERIAL_OPENMP_REGIONS
+  SerialOpenMpRegions() : levels_(omp_get_max_active_levels()) { omp_set_max_active_levels(0); }
+  ~SerialOpenMpRegions() { omp_set_max_active_levels(levels_); }
+
+ private:
+  int levels_;
+#endif
+};
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -34,6 +60,7 @@ CholmodFactor::CholmodFactor(const SparseMatrix& pattern) : n_(static_cast<int>(
   common_.error_handler = nullptr;
   const auto t0 = std::chrono::steady_clock::now();
   cholmod_sparse A = view();
+  const SerialOpenMpRegions serial;
   factor_ = cholmod_analyze(&A, &common_);
   seconds_analyze_ = seconds_since(t0);
   if (!factor_) {
@@ -78,6 +105,7 @@ bool CholmodFactor::factorize(const SparseMatrix& K, const SparseMatrix& M, doub
   double* a = shifted_.valuePtr();
   for (Eigen::Index i = 0; i < shifted_.nonZeros(); ++i) a[i] = k[i] - sigma * m[i];
   cholmod_sparse A = view();
+  const SerialOpenMpRegions serial;
   cholmod_factorize(&A, factor_, &common_);
   const bool ok = common_.status == CHOLMOD_OK && factor_->minor == static_cast<size_t>(n_);
   if (failed_column) *failed_column = ok ? -1 : static_cast<int>(factor_->minor);
