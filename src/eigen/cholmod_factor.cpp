@@ -30,6 +30,8 @@ class SerialOpenMpRegions {
 
  private:
   int levels_;
+#else
+  SerialOpenMpRegions() {}  // no OpenMP runtime found: CHOLMOD has no regions to keep serial
 #endif
 };
 
