@@ -223,6 +223,25 @@ TEST(ParametricSystem, MatricesAreSymmetricAndTotalMassIsExact) {
   EXPECT_CLOSE(f.system->total_mass(f.p0), 1.5 * 0.9 * 2.0 + 1.5 * 1.0 + 0.5, 1e-12);
 }
 
+// With no DOF fixed (the model is free-free), the rigid-translation inertia is M r_d, r_d the unit
+// translation along d of every node (through the rigid coupling, of its reference node), and
+// r_d^T M r_d is the total mass: blocks and the point mass alike.
+TEST(ParametricSystem, RigidBodyInertiaIsTheMassTimesTheRigidTranslations) {
+  Fixture f = Load();
+  SparseMatrix K, M;
+  f.system->assemble(f.p0, &K, &M);
+  const Matrix inertia = f.system->rigid_body_inertia(f.p0);
+  const DofMap& dofs = f.system->dof_map();
+  ASSERT_EQ(inertia.rows(), dofs.num_free());
+  for (int d = 0; d < 3; ++d) {
+    Vector r = Vector::Zero(dofs.num_free());
+    for (int i = 0; i < dofs.num_free(); ++i) r[i] = dofs.free_owner(i).second == d ? 1.0 : 0.0;
+    const Vector Mr = M * r;
+    EXPECT_LT((inertia.col(d) - Mr).norm(), 1e-12 * Mr.norm()) << "direction " << d;
+    EXPECT_CLOSE(r.dot(inertia.col(d)), f.system->total_mass(f.p0), 1e-12);
+  }
+}
+
 TEST(DofMap, RigidCouplingMovesCoupledNodesRigidly) {
   Fixture f = Load();
   const DofMap& dofs = f.system->dof_map();

@@ -364,12 +364,11 @@ void ParametricSystem::Builder::discrete_terms() {
     }
   for (const PointMass& m : s_.model_.point_masses) {
     const Matrix identity = Matrix::Identity(3, 3);
-    if (m.mass != kNoProperty) {
-      const std::vector<int> full = {dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)};
-      Matrix inertia = Matrix::Zero(dofs.num_free(), 3);
-      add_inertia(inertia, full, identity);
-      discrete_term(full, identity, m.mass, true, std::move(inertia));
-    }
+    // Its rigid-translation inertia is added by rigid_body_inertia() itself: a dense num_free x 3
+    // per point mass, in every system built, took most of a diagnosis's memory.
+    if (m.mass != kNoProperty)
+      discrete_term({dofs.full_index(m.node, 0), dofs.full_index(m.node, 1), dofs.full_index(m.node, 2)}, identity,
+                    m.mass, true);
     for (int c = 0; c < 3; ++c)
       if (m.inertia[c] != kNoProperty) discrete_term({dofs.full_index(m.node, 3 + c)}, one, m.inertia[c], true);
   }
@@ -680,6 +679,17 @@ Matrix ParametricSystem::rigid_body_inertia(const Vector& p) const {
   Matrix inertia = Matrix::Zero(num_dofs(), 3);
   for (const Term& t : terms_)
     if (t.inertia.size()) inertia += t.coefficient.value(theta) * t.inertia;
+  // A point mass m at a node: m times the rows of T of the node's translations, which touch a few
+  // free DOFs only (the terms keep no dense copy of them).
+  const DofMap::RowSparseMatrix& T = dofs_->transformation_rows();
+  for (const PointMass& m : model_.point_masses) {
+    if (m.mass == kNoProperty) continue;
+    for (int d = 0; d < 3; ++d) {
+      const int full = dofs_->full_index(m.node, d);
+      if (full < 0) continue;
+      for (DofMap::RowSparseMatrix::InnerIterator it(T, full); it; ++it) inertia(it.col(), d) += theta[m.mass] * it.value();
+    }
+  }
   return inertia;
 }
 
