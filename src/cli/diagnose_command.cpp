@@ -529,7 +529,7 @@ int run_diagnose(const DiagnoseArgs& args) {
 void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
   cmd->add_flag("--walks-in-turn", args->walks_in_turn,
                 "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
-                "refits in threads: slower, and about half the peak memory (LFU 0.7: 0.9 GB against 1.7)");
+                "refits in threads: slower, and less peak memory (LFU 0.7: 0.7 GB against 1.0)");
   cmd->add_flag("--no-exchange", args->no_exchange,
                 "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
   cmd->add_flag("--no-backward", args->no_backward,
