@@ -17,8 +17,8 @@ struct ParametricSystem::Term {
   std::vector<int> positions;
   std::vector<double> values;
   std::vector<int> parameters;  // parameters the coefficient depends on
-  // For mass terms: T^T M_t,full r_d for the unit rigid translations r_d of *all* DOFs, fixed
-  // ones included (num_free x 3). The mass coupling to supported DOFs belongs in the
+  // For a block's mass terms: T^T M_t,full r_d for the unit rigid translations r_d of *all* DOFs,
+  // fixed ones included (num_free x 3); rigid_body_inertia() adds point masses itself. The mass coupling to supported DOFs belongs in the
   // participation factors of a supported model, and the reduced M alone does not hold it.
   Matrix inertia;
 };
@@ -127,8 +127,7 @@ class ParametricSystem::Builder {
   void scatter(const std::vector<int>& full, const std::vector<const Matrix*>& local);
   void finish(int index, Coefficient coefficient, bool mass, Matrix inertia = Matrix());
   void add_inertia(Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) const;
-  void discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass,
-                     Matrix inertia = Matrix());
+  void discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass);
   void group_terms(const ElementBlock& b, const std::vector<int>& regions, const std::vector<int>& elements,
                    ElementMatrixCache* cache);
 
@@ -336,9 +335,9 @@ void ParametricSystem::Builder::group_terms(const ElementBlock& b, const std::ve
 // A discrete entity's component as a term of its own (in the accumulator's first slot), so that
 // each can be a parameter.
 void ParametricSystem::Builder::discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id,
-                                              bool mass, Matrix inertia) {
+                                              bool mass) {
   scatter(full, {&local});
-  finish(0, Coefficient{{factor(id)}}, mass, std::move(inertia));
+  finish(0, Coefficient{{factor(id)}}, mass);
   acc_->reset();
 }
 
