@@ -18,12 +18,24 @@ struct ParametricSystem::Term {
   std::vector<double> values;
   std::vector<int> parameters;  // parameters the coefficient depends on
   // For a block's mass terms: T^T M_t,full r_d for the unit rigid translations r_d of *all* DOFs,
-  // fixed ones included (num_free x 3); rigid_body_inertia() adds point masses itself. The mass coupling to supported DOFs belongs in the
-  // participation factors of a supported model, and the reduced M alone does not hold it.
+  // fixed ones included (num_free x 3); rigid_body_inertia() adds point masses itself. The mass
+  // coupling to supported DOFs belongs in the participation factors of a supported model, and the
+  // reduced M alone does not hold it.
   Matrix inertia;
 };
 
 namespace {
+
+// Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
+// every local DOF, fixed or not.
+void add_inertia(const DofMap& dofs, Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) {
+  const DofMap::RowSparseMatrix& T = dofs.transformation_rows();
+  for (size_t a = 0; a < full.size(); ++a) {
+    if (full[a] < 0) continue;
+    for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
+      inertia.row(it.col()) += it.value() * local_inertia.row(a);
+  }
+}
 
 // Structured meshes repeat the same element shape many times; computing its matrices once
 // makes setup of a 1e5-element model several times faster. Keyed on node coordinates relative
@@ -126,7 +138,6 @@ class ParametricSystem::Builder {
   int find_position(int row, int col) const;
   void scatter(const std::vector<int>& full, const std::vector<const Matrix*>& local);
   void finish(int index, Coefficient coefficient, bool mass, Matrix inertia = Matrix());
-  void add_inertia(Matrix& inertia, const std::vector<int>& full, const Matrix& local_inertia) const;
   void discrete_term(const std::vector<int>& full, const Matrix& local, PropertyId id, bool mass);
   void group_terms(const ElementBlock& b, const std::vector<int>& regions, const std::vector<int>& elements,
                    ElementMatrixCache* cache);
@@ -256,17 +267,6 @@ void ParametricSystem::Builder::finish(int index, Coefficient coefficient, bool 
   if (!term.positions.empty()) s_.terms_.push_back(std::move(term));
 }
 
-// Adds M_e r_d (local, 3 columns) through the rows of T: the rigid translation is applied to
-// every local DOF, fixed or not.
-void ParametricSystem::Builder::add_inertia(Matrix& inertia, const std::vector<int>& full,
-                                            const Matrix& local_inertia) const {
-  const DofMap::RowSparseMatrix& T = s_.dofs_->transformation_rows();
-  for (size_t a = 0; a < full.size(); ++a) {
-    if (full[a] < 0) continue;
-    for (DofMap::RowSparseMatrix::InnerIterator it(T, full[a]); it; ++it)
-      inertia.row(it.col()) += it.value() * local_inertia.row(a);
-  }
-}
 
 void ParametricSystem::Builder::block_terms() {
   ElementMatrixCache cache;
@@ -302,7 +302,7 @@ void ParametricSystem::Builder::group_terms(const ElementBlock& b, const std::ve
     }
     for (int k = 0; k < npe; ++k) volume += em->mass.row(3 * k).sum();
     scatter(full, {&em->volumetric, &em->deviatoric, &em->mass});
-    add_inertia(inertia, full, em->mass * translations);
+    add_inertia(dofs, inertia, full, em->mass * translations);
   }
   Coefficient bulk, shear, density;
   if (b.form == ElasticForm::BulkShear) {
@@ -680,15 +680,11 @@ Matrix ParametricSystem::rigid_body_inertia(const Vector& p) const {
     if (t.inertia.size()) inertia += t.coefficient.value(theta) * t.inertia;
   // A point mass m at a node: m times the rows of T of the node's translations, which touch a few
   // free DOFs only (the terms keep no dense copy of them).
-  const DofMap::RowSparseMatrix& T = dofs_->transformation_rows();
-  for (const PointMass& m : model_.point_masses) {
-    if (m.mass == kNoProperty) continue;
-    for (int d = 0; d < 3; ++d) {
-      const int full = dofs_->full_index(m.node, d);
-      if (full < 0) continue;
-      for (DofMap::RowSparseMatrix::InnerIterator it(T, full); it; ++it) inertia(it.col(), d) += theta[m.mass] * it.value();
-    }
-  }
+  for (const PointMass& m : model_.point_masses)
+    if (m.mass != kNoProperty)
+      add_inertia(*dofs_, inertia,
+                  {dofs_->full_index(m.node, 0), dofs_->full_index(m.node, 1), dofs_->full_index(m.node, 2)},
+                  theta[m.mass] * Matrix::Identity(3, 3));
   return inertia;
 }
 
