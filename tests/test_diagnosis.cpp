@@ -72,14 +72,15 @@ Problem LoadAssembly(const std::string& extra = "") {
   return LoadProblem(WriteTempFile("assembly.yaml", std::string(kAssembly) + extra));
 }
 
-/// The assembly measured on a truth with `changes`, 0.2 % frequency and 2 % shape noise.
-Problem WithHiddenEffect(const std::vector<std::string>& changes, std::uint64_t seed) {
+/// The assembly measured on a truth with `changes`, 0.2 % frequency and 2 % shape noise (`noisy`
+/// false: without noise, and none stated).
+Problem WithHiddenEffect(const std::vector<std::string>& changes, std::uint64_t seed, bool noisy = true) {
   Problem problem = LoadAssembly();
   std::vector<ModelChange> parsed;
   for (const std::string& c : changes) parsed.push_back(parse_model_change(c));
   SynthesisOptions options;
   options.modes = problem.synthetic->modes;
-  options.noise = {0.002, 0.02, seed};
+  options.noise = noisy ? MeasurementNoise{0.002, 0.02, seed} : MeasurementNoise{0, 0, seed};
   const MeasuredData data =
       synthesize_measured_data(problem, make_truth(problem, nullptr, parsed), problem.sensors, options);
   problem.measured = data.modes;
@@ -1425,6 +1426,29 @@ TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {
   EXPECT_EQ(d.ranking.effects[0].candidate.name, "j.krx");
   EXPECT_TRUE(std::isnan(d.ranking.effects[0].standard_error));
   EXPECT_NE(d.recommendation.find("Without a stated noise"), std::string::npos) << d.recommendation;
+}
+
+// Noise-free data and no stated noise, as a synthetic problem gives: the right model, calibrated,
+// meets them to their resolution, where the F test's noise estimate is rounding, and a refit that
+// only converges further than the calibration did must not pass for an effect.
+TEST(Diagnosis, WithoutStatedNoiseDataTheModelMeetsToTheirResolutionAskForNothing) {
+  const Problem right = WithHiddenEffect({}, 1, false);
+  ASSERT_FALSE(right.measurement_noise && right.measurement_noise->frequency > 0);
+  const Diagnosis c = diagnose(right, right.initial_values());
+  EXPECT_TRUE(c.at_resolution);
+  EXPECT_FALSE(c.model_form_error) << format_diagnosis(right, c);
+  EXPECT_TRUE(c.accepted().empty());
+  for (const RankedEffect& r : c.ranking.effects) EXPECT_FALSE(r.significant) << r.candidate.name;
+  EXPECT_NE(c.recommendation.find("No model-form error"), std::string::npos) << c.recommendation;
+
+  // A 10 % heavier block is found, and the loop ends once the model meets the data.
+  const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1"}, 1, false);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  EXPECT_FALSE(d.before.test);
+  EXPECT_TRUE(d.model_form_error);
+  EXPECT_EQ(d.accepted(), std::vector<std::string>{"top.mass_scale"}) << format_diagnosis(hidden, d);
+  EXPECT_TRUE(d.at_resolution);
+  EXPECT_NE(d.recommendation.find("the data's resolution"), std::string::npos) << d.recommendation;
 }
 
 TEST(Diagnosis, BeforeAfterTableHasEveryModeAndBothVerdicts) {

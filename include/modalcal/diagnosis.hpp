@@ -246,7 +246,7 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
 /// stands in for something else, as a step would not have accepted it.
 struct MODALCAL_EXPORT DroppedEffect {
   std::string name;
-  double chi2_increase = 0;   ///< X^2 refitted without it, minus X^2 with it
+  double chi2_increase = 0;   ///< X^2 refitted without it, minus X^2 with it (without a stated noise: the F statistic)
   double critical_value = 0;  ///< chi-square(1) at the significance level
   bool on_bound = false;      ///< dropped for ending on a bound, whatever its chi2_increase
   double value = NAN;         ///< its value when dropped
@@ -311,8 +311,13 @@ struct MODALCAL_EXPORT Diagnosis {
   /// The final parameters: the problem's, then one value per entry of `effects`.
   Vector final_parameters;
   FitState final_fit;  ///< the residual at the end
+  /// Without a stated noise: the final fit meets every measured frequency within
+  /// RankingOptions::resolution (relative) and every MAC within it of 1, the data's resolution;
+  /// no step is taken from such a fit. Always false with a stated noise (the test decides there).
+  bool at_resolution = false;
   /// The one verdict: an accepted effect survived the backward pass, or the residual at the end
-  /// still fails the test against the noise (without a stated noise: an effect was kept).
+  /// still fails the test against the noise (without a stated noise: is not at the data's
+  /// resolution, at_resolution).
   bool model_form_error = false;
   /// Names of the accepted effects the backward pass kept.
   std::vector<std::string> accepted() const;

@@ -237,6 +237,14 @@ struct MODALCAL_EXPORT RankingOptions {
   /// Significance level of the likelihood-ratio test, before the Bonferroni division by the
   /// number of candidates screened. Range: (0, 0.5).
   double significance = 0.01;
+  /// Without a stated noise, the data's resolution: a model frequency within this relative error
+  /// of the measured one, and a MAC within it of 1, cannot be told from exact agreement (no modal
+  /// test repeats to 0.01 % in frequency). The F test, which estimates the noise from the refit's
+  /// own residual, never takes that estimate below the residual such a fit leaves per datum
+  /// (resolution_variance()): otherwise, on noise-free data from the right model, a
+  /// refit that merely converges further than the calibration did would be "significant".
+  /// Unused with a stated noise. Range: (0, 0.01].
+  double resolution = 1e-4;
   /// The refits: Gauss-Newton from the first-order start (why not L-BFGS: docs/design.md,
   /// "Refits and significance"). Tolerances suit a
   /// noise-weighted misfit (values of the order of the number of data): the projected gradient in
@@ -332,6 +340,10 @@ struct MODALCAL_EXPORT EffectRanking {
   /// calibration parameters already do this", "could not be applied: ...").
   std::vector<std::pair<std::string, std::string>> set_aside;
   double critical_value = 0;  ///< of the likelihood-ratio test
+  /// Without a stated noise: the least noise variance per datum the F test assumes, that of a fit
+  /// whose every frequency is off by RankingOptions::resolution and every MAC short of 1 by it
+  /// (resolution_variance()). 0 with a stated noise.
+  double resolution_variance = 0;
   double screen_seconds = 0, refit_seconds = 0;
   int linear_solves = 0;  ///< of the screen's Jacobian
 };

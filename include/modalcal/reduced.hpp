@@ -77,6 +77,11 @@ struct MODALCAL_EXPORT ReducedOptions {
   /// function_tolerance): the misfit has stopped moving even if its gradient has not reached the
   /// tolerance (rounding in J, or a flat valley). 0 switches it off. Range: [0, 1).
   double function_tolerance = 0;
+  /// The misfit below which function_tolerance is absolute: an iteration's decrease is compared
+  /// with function_tolerance × max(|J|, function_scale). 1 suits a noise-weighted misfit (a
+  /// chi-square); one in other units, e.g. relative errors without a stated noise, needs its own
+  /// unit, or a misfit far below 1 stops after any step. Range: > 0.
+  double function_scale = 1;
   /// L-BFGS memory. Range: >= 1.
   int memory = 10;
   /// Use the parameters' bounds; without them only log scaling keeps p positive. 

@@ -74,6 +74,14 @@ MODALCAL_EXPORT ResidualTest test_residual(const Objective& objective, const Eva
                                            const MeasurementNoise& noise, int num_parameters,
                                            const ResidualTestOptions& options = {});
 
+/// Without a stated noise, the misfit a fit at the data's resolution leaves per datum: 2J over
+/// count_data() when every frequency is off by `resolution` (relative; its eigenvalue by twice
+/// that) and every MAC short of 1 by it, under the problem's own weights:
+/// \f$\big(\sum_i \beta_i (2\epsilon)^2 + \sum_i \kappa_i \epsilon\big) / n\f$. A diagnosis's F test
+/// takes no noise variance below it (RankingOptions::resolution).
+/// \throws std::invalid_argument unless resolution > 0.
+MODALCAL_EXPORT double resolution_variance(const Problem& problem, double resolution);
+
 /// The number of data n the residual holds: one per weighted frequency, s − 1 per weighted shape
 /// of s values (a shape's scale is not a datum).
 MODALCAL_EXPORT int count_data(const Problem& problem, const Evaluation& evaluation);

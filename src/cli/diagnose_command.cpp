@@ -34,6 +34,7 @@ struct DiagnoseArgs {
   int neighbour_refits = RankingOptions().neighbour_refits;
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   double significance = ResidualTestOptions().significance;
+  double resolution = RankingOptions().resolution;
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
@@ -270,7 +271,8 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
                             {"dof", d.final_fit.test ? nlohmann::json(d.final_fit.test->dof) : nlohmann::json()},
                             {"p_value", d.final_fit.test ? nlohmann::json(d.final_fit.test->p_value) : nlohmann::json()},
                             {"model_form_error", d.final_fit.test ? nlohmann::json(d.final_fit.test->model_form_error)
-                                                                  : nlohmann::json()}};
+                                                                  : nlohmann::json()},
+                            {"at_resolution", d.final_fit.test ? nlohmann::json() : nlohmann::json(d.at_resolution)}};
 }
 
 nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
@@ -413,6 +415,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.neighbour_rounds = args.neighbour_rounds;
   options.ranking.significance = args.significance;
   options.test.significance = args.significance;
+  options.ranking.resolution = args.resolution;
   options.max_steps = args.max_steps;
   options.first_step_alternatives = args.first_step_alternatives;
   options.candidates.region_elements = args.region_size;
@@ -525,6 +528,19 @@ int run_diagnose(const DiagnoseArgs& args) {
   return 0;
 }
 
+/// --significance and --resolution: when the data ask for an effect.
+void add_test_flags(CLI::App* cmd, DiagnoseArgs* args) {
+  cmd->add_option("--significance", args->significance,
+                  "level of the residual and likelihood-ratio tests (default 0.01)")
+      ->check(finite_number())
+      ->check(FiniteRange(1e-12, 0.5));
+  cmd->add_option("--resolution", args->resolution,
+                  "without a stated noise: frequencies within this relative error and MACs within it of 1 count "
+                  "as met (default 1e-4); no effect is looked for below it")
+      ->check(finite_number())
+      ->check(FiniteRange(1e-12, 0.01));
+}
+
 /// The flags that leave out or reorder parts of the loop's walk.
 void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
   cmd->add_flag("--walks-in-turn", args->walks_in_turn,
@@ -565,10 +581,7 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--neighbour-rounds", args->neighbour_rounds,
                   "repeat the neighbour refits from a best that moved, at most this many rounds (default 3)")
       ->check(non_negative_number());
-  cmd->add_option("--significance", args->significance,
-                  "level of the residual and likelihood-ratio tests (default 0.01)")
-      ->check(finite_number())
-      ->check(FiniteRange(1e-12, 0.5));
+  add_test_flags(cmd, args.get());
   cmd->add_option("--max-iterations", args->max_iterations, "iteration limit of the calibration (default 60)")
       ->check(non_negative_number());
   cmd->add_option("--max-steps", args->max_steps,

@@ -243,6 +243,18 @@ void localize(const Problem& problem, const Vector& calibrated, const DiagnosisO
 
 bool consistent_with_noise(const FitState& fit) { return fit.test && !fit.test->model_form_error; }
 
+/// Without a stated noise: every paired frequency within `resolution` (relative) of the measured
+/// one and every MAC within it of 1. Such a fit cannot be told from exact agreement, so neither can
+/// any effect's change to it.
+bool at_resolution(const FitState& fit, double resolution) {
+  if (fit.test) return false;
+  for (const PairedMode& pair : fit.pairs) {
+    if (!(std::abs(pair.model_hz - pair.measured_hz) <= resolution * pair.measured_hz)) return false;
+    if (pair.mac >= 0 && !(1 - pair.mac <= resolution)) return false;
+  }
+  return true;
+}
+
 /// The ranking's effect to accept, or null: its best refit when that is significant and inside
 /// its range (the ranking puts those first).
 const RankedEffect* acceptable(const EffectRanking& ranking) {
@@ -412,7 +424,7 @@ double lr_statistic(const Diagnosis& d, const LoopState& without, const LoopStat
   const double increase = without.fit.statistic - with.fit.statistic;
   if (d.noise_known) return increase;
   const int dof = d.rankings.front().num_data - static_cast<int>(with.parameters.size());
-  return increase / (with.fit.statistic / std::max(1, dof));
+  return increase / std::max(with.fit.statistic / std::max(1, dof), d.rankings.front().resolution_variance);
 }
 
 /// `state` without its effect `k` from calibrate_without()'s result `refit`; nullopt when that
@@ -561,7 +573,7 @@ std::string format_number(double v) {
   return b;
 }
 
-std::string effects_text(const Diagnosis& d);
+std::string effects_text(const Diagnosis& d, double resolution);
 
 std::string discretization_text(const Diagnosis& d) {
   if (!d.discretization || !d.discretization->significant) return "";
@@ -596,8 +608,8 @@ std::string discretization_text(const Diagnosis& d) {
   return text;
 }
 
-std::string recommendation_text(const Diagnosis& d) {
-  return discretization_text(d) + effects_text(d);
+std::string recommendation_text(const Diagnosis& d, double resolution) {
+  return discretization_text(d) + effects_text(d, resolution);
 }
 
 /// " X, significant, ends on a bound of its range (value V): the data ask for more change than any
@@ -610,16 +622,33 @@ std::string bound_limited_text(const Diagnosis& d) {
          format_number(limited->value) + "): the data ask for more change than it can make, so it is not added.";
 }
 
-std::string effects_text(const Diagnosis& d) {
+/// "every measured frequency within 0.01 % and every MAC within 0.0001 of 1, the data's resolution"
+std::string resolution_text(double resolution) {
+  char text[160];
+  std::snprintf(text, sizeof text,
+                "every measured frequency within %.3g %% and every MAC within %.3g of 1, the data's resolution",
+                100 * resolution, resolution);
+  return text;
+}
+
+std::string effects_text(const Diagnosis& d, double resolution) {
   char numbers[200];
   if (d.accepted().empty()) {
     if (bound_limited(d))
       return "Model-form error." + bound_limited_text(d) +
              " The missing physics is not among the candidates as they are bounded (declare your own under "
              "effects: in the problem file).";
+    if (!d.model_form_error && !d.noise_known)
+      return "No model-form error: with no stated noise, the calibrated model meets " + resolution_text(resolution) +
+             "; nothing smaller can be told apart, and nothing needs adding.";
     if (!d.model_form_error)
       return "No model-form error: the calibrated residual is consistent with the stated noise and no candidate "
              "effect explains a significant part of it; nothing needs adding.";
+    if (!d.noise_known)
+      return "Model-form error, or noise: the calibrated model does not meet the data to their resolution, and no "
+             "candidate effect explains the residual significantly. With no stated noise it is not known whether "
+             "what remains is noise (state it under measured: noise:) or physics not among the " +
+             std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
     return "Model-form error, but no candidate effect explains the residual significantly: the missing physics is "
            "not among the " +
            std::to_string(d.ranking.screened) + " candidates (declare your own under effects: in the problem file).";
@@ -638,7 +667,9 @@ std::string effects_text(const Diagnosis& d) {
     text += x.name + (x.on_bound ? " was dropped again: refitted with the later effects it went to a bound of its range (" +
                                        format_number(x.value) + "), where it stands in for something else. "
                                  : " was dropped again: the others explain it. ");
-  if (!d.final_fit.test)
+  if (d.at_resolution)
+    text += "With them the model meets " + resolution_text(resolution) + ".";
+  else if (!d.final_fit.test)
     text += "Without a stated noise it is not known whether anything else is missing.";
   else if (d.final_fit.test->model_form_error)
     text += "The residual is still larger than the noise (" + d.final_fit.test->verdict +
@@ -808,7 +839,8 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
     if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
-    if (!forward_step(fitted, &state, options, k < options.max_steps, memo, d)) break;
+    const bool may_accept = k < options.max_steps && !at_resolution(state.fit, options.ranking.resolution);
+    if (!forward_step(fitted, &state, options, may_accept, memo, d)) break;
   }
   if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
   end_at(state, d);
@@ -1064,9 +1096,28 @@ void check_starting_effects(const Problem& problem, const DiagnosisOptions& opti
 
 }  // namespace
 
-Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
+namespace {
+
+/// Without a stated noise the misfit is no chi-square, and the calibrations' absolute tolerances,
+/// meant for one, would end them short of the data's resolution on data a model all but meets
+/// (below 1, the function tolerance stops any step that gains less than a thousandth): they are
+/// taken in units of the resolution's variance per datum instead.
+DiagnosisOptions in_misfit_units(const Problem& problem, DiagnosisOptions options) {
+  if (has_noise(problem)) return options;
+  const double unit = resolution_variance(problem, options.ranking.resolution);
+  for (ReducedOptions* walk : {&options.calibration, &options.ranking.refit}) {
+    walk->gradient_tolerance *= unit;
+    walk->function_scale = unit;
+  }
+  return options;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& given) {
   std::string error;
-  if (!options.IsValid(&error)) throw std::invalid_argument("DiagnosisOptions: " + error);
+  if (!given.IsValid(&error)) throw std::invalid_argument("DiagnosisOptions: " + error);
+  const DiagnosisOptions options = in_misfit_units(problem, given);
   if (start.size() != static_cast<int>(problem.parameters.size()))
     throw std::invalid_argument("diagnose: " + std::to_string(start.size()) + " start values for " +
                                 std::to_string(problem.parameters.size()) + " parameters");
@@ -1082,13 +1133,15 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
     run_loop(problem, weighted_if(d.noise_known, problem), options, &d);
   // What the backward pass kept decides, not the forward steps: a step whose refit only escaped
   // a local minimum of the calibration is dropped again, and the residual at the end is noise.
-  d.model_form_error = !d.accepted().empty() || !d.final_fit.test || d.final_fit.test->model_form_error ||
+  d.at_resolution = at_resolution(d.final_fit, options.ranking.resolution);
+  d.model_form_error = !d.accepted().empty() ||
+                       (d.final_fit.test ? d.final_fit.test->model_form_error : !d.at_resolution) ||
                        bound_limited(d) != nullptr;
   if (!d.accepted().empty()) {
     d.recommended = rank_of(d.ranking, d.steps.front().effect.candidate.name) - 1;
     d.after = d.final_fit;
   }
-  d.recommendation = recommendation_text(d);
+  d.recommendation = recommendation_text(d, options.ranking.resolution);
   return d;
 }
 
@@ -1253,11 +1306,11 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
       std::snprintf(b, sizeof b, "at [%.4g, %.4g, %.4g]", (*s.location)[0], (*s.location)[1], (*s.location)[2]);
       where = b;
     }
-    std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (dX2 %.4g > %.4g, %d screened)\n",
+    std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (%s %.4g > %.4g, %d screened)\n",
                   s.step, s.effect.candidate.name.c_str(), s.effect.value,
                   std::isfinite(s.effect.standard_error) ? (" +/- " + format_number(s.effect.standard_error)).c_str() : "",
-                  where.c_str(), s.chi2_before, s.effect.chi2_after, s.effect.achieved_reduction, s.critical_value,
-                  s.screened);
+                  where.c_str(), s.chi2_before, s.effect.chi2_after, d.noise_known ? "dX2" : "F", s.effect.statistic,
+                  s.critical_value, s.screened);
     text += line;
     for (size_t k = 0; k < s.alternatives.size(); ++k) {
       text += alternative_text(s, s.alternatives[k], s.step == 1 && d.paths.size() > 1);
@@ -1279,8 +1332,8 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
       std::snprintf(line, sizeof line, "  backward  - %s: refitted with the later effects it ends on a bound (%.4g)\n",
                     x.name.c_str(), x.value);
     else
-      std::snprintf(line, sizeof line, "  backward  - %s: without it the %s rises by only %.4g (< %.4g)\n",
-                    x.name.c_str(), chi2_text(d.noise_known).c_str(), x.chi2_increase, x.critical_value);
+      std::snprintf(line, sizeof line, "  backward  - %s: without it %s only %.4g (< %.4g)\n", x.name.c_str(),
+                    d.noise_known ? "the chi-square rises by" : "the F statistic is", x.chi2_increase, x.critical_value);
     text += line;
   }
   if (d.steps.empty()) text += "  no effect accepted\n";

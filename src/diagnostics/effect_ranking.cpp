@@ -595,9 +595,11 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
     ranked.p_value_after = m.p_value;
     ranked.model_form_error_after = m.model_form_error;
     ranked.achieved_reduction = ranking.chi2_before - m.statistic;
-    // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees).
+    // Without a stated noise the refit's residual estimates it (F-test with 1 and dof degrees),
+    // though never below the data's resolution.
     const double statistic =
-        ranking.noise_known ? ranked.achieved_reduction : ranked.achieved_reduction / (m.statistic / m.dof);
+        ranking.noise_known ? ranked.achieved_reduction
+                            : ranked.achieved_reduction / std::max(m.statistic / m.dof, ranking.resolution_variance);
     ranked.statistic = statistic;
     ranked.significant = statistic > ranking.critical_value;
     ranked.at_bound = ranked.candidate.on_bound(ranked.value);
@@ -747,6 +749,8 @@ bool RankingOptions::IsValid(std::string* error) const {
     return bad("kind_refit_share = " + detail::option_text(kind_refit_share) + ": must be in (0, 1]");
   if (!(significance > 0 && significance < 0.5))
     return bad("significance = " + detail::option_text(significance) + ": must be in (0, 0.5)");
+  if (!(resolution > 0 && resolution <= 0.01))
+    return bad("resolution = " + detail::option_text(resolution) + ": must be in (0, 0.01]");
   if (!(refit_span_share >= 0 && refit_span_share <= 1))
     return bad("refit_span_share = " + detail::option_text(refit_span_share) + ": must be in [0, 1]");
   if (!(refit_linear_tolerance > 0 && refit_linear_tolerance <= 1e-4))
@@ -802,6 +806,7 @@ EffectRanking detail::rank_effects_with(Objective& objective, const Vector& cali
   ranking.chi2_before = before.statistic;
   ranking.dof_before = before.dof;
   ranking.num_data = before.data;
+  if (!ranking.noise_known) ranking.resolution_variance = resolution_variance(problem, options.resolution);
 
   // The screen: every candidate's first-order prediction from one Jacobian.
   // Usually every candidate applies, and the screen's model is the one check; when one does not,

@@ -96,6 +96,23 @@ double chi_square_critical_value(double alpha, int nu) {
   return 0.5 * (lo + hi);
 }
 
+double resolution_variance(const Problem& problem, double resolution) {
+  if (!(resolution > 0)) throw std::invalid_argument("resolution_variance: resolution must be > 0");
+  double two_j = 0;
+  int data = 0;
+  for (const MeasuredMode& m : problem.measured) {
+    if (m.weight > 0) {
+      two_j += m.weight * 4 * resolution * resolution;
+      data += 1;
+    }
+    if (m.has_shape_term() && m.shape.size() > 1) {
+      two_j += m.shape_weight * resolution;
+      data += static_cast<int>(m.shape.size()) - 1;
+    }
+  }
+  return two_j / std::max(1, data);
+}
+
 int count_data(const Problem& problem, const Evaluation& evaluation) {
   int data = 0;
   for (const PairedMode& pair : evaluation.pairs) {

@@ -32,6 +32,8 @@ bool ReducedOptions::IsValid(std::string* error) const {
   if (!(gradient_tolerance >= 0)) return bad("gradient_tolerance = " + detail::option_text(gradient_tolerance) + ": must be >= 0");
   if (!(relative_gradient_tolerance >= 0 && relative_gradient_tolerance < 1))
     return bad("relative_gradient_tolerance = " + detail::option_text(relative_gradient_tolerance) + ": must be in [0, 1)");
+  if (!(function_scale > 0 && std::isfinite(function_scale)))
+    return bad("function_scale = " + detail::option_text(function_scale) + ": must be > 0");
   if (!(function_tolerance >= 0 && function_tolerance < 1))
     return bad("function_tolerance = " + detail::option_text(function_tolerance) + ": must be in [0, 1)");
   if (memory < 1) return bad("memory = " + detail::option_text(memory) + ": must be >= 1");
@@ -195,7 +197,7 @@ class ReducedRun {
     const Vector s = next.x - current_.x;
     const double decrease = current_.value - next.value;
     const bool last = options_.function_tolerance > 0 &&
-                      decrease <= options_.function_tolerance * std::max(std::abs(next.value), 1.0);
+                      decrease <= options_.function_tolerance * std::max(std::abs(next.value), options_.function_scale);
     if (second_order_) {
       use_exact_hessian_ = newton_ && next.value > 0.8 * current_.value;
       // The last iterate needs only its gradient (for the record): its Jacobian or Hessian, one
