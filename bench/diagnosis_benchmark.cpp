@@ -738,6 +738,10 @@ Case draw_case(ProblemContext& ctx, int number, std::uint64_t seed, bool force_c
   }
   if (options.only) c.category = *options.only;
   if (force_control) c.category = Category::Control;
+  if (ctx.fine_ratios.empty() && !options.only) {  // a mesh read from a file: no finer truth
+    if (c.category == Category::FineControl) c.category = Category::Control;
+    if (c.category == Category::FineEffect) c.category = Category::Single;
+  }
 
   auto available = [&](const std::vector<Family>& families) {
     std::vector<Family> out;
@@ -1000,7 +1004,8 @@ void usage() {
       "  --cases, --controls: per problem (one value for all, or one per --problem in order);\n"
       "  --controls adds M control cases per problem after the N drawn ones (cheap false-alarm counts);\n"
       "  --case-list: run only these case numbers (with the same --cases/--controls: reproduces them);\n"
-      "  CATEGORY: control single outside multi below-noise fine-control fine-effect.\n"
+      "  CATEGORY: control single outside multi below-noise fine-control fine-effect (on a mesh read from a\n"
+      "  file, which has no finer truth, drawn fine-mesh cases become controls and single effects).\n"
       "  Case k of problem j has seed B + 1000 j + k. Tuning runs: --seed-base 1000; reports: 2000.");
 }
 
@@ -1170,9 +1175,14 @@ int main(int argc, char** argv) {
       LoadOptions load;
       load.refinement = ctx.refinement * args.mesh_check;
       load.nearest_sensor_nodes = true;
-      ctx.check = load_problem(ctx.path, load);
-      synthesize_measured(&*ctx.check);
-      std::printf("# discretization estimate on a mesh x%g: %d nodes\n", args.mesh_check, ctx.check->model.num_nodes());
+      try {
+        ctx.check = load_problem(ctx.path, load);
+        synthesize_measured(&*ctx.check);
+        std::printf("# discretization estimate on a mesh x%g: %d nodes\n", args.mesh_check, ctx.check->model.num_nodes());
+      } catch (const ProblemError& e) {  // as diagnose: a mesh read from a file is not refined
+        ctx.check.reset();
+        std::printf("# no discretization estimate: %s\n", e.what());
+      }
     }
     const int n_cases = list_value(args.cases, j), n_controls = list_value(args.controls, j);
     std::printf("%-5s %-6s %-26s %-7s %-8s %-34s %-7s %-6s %-9s %-9s %s\n", "case", "seed", "category", "lambda", "detect",
