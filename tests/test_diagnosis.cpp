@@ -1440,6 +1440,15 @@ TEST(Diagnosis, WithoutStatedNoiseDataTheModelMeetsToTheirResolutionAskForNothin
   EXPECT_TRUE(c.accepted().empty());
   for (const RankedEffect& r : c.ranking.effects) EXPECT_FALSE(r.significant) << r.candidate.name;
   EXPECT_NE(c.recommendation.find("No model-form error"), std::string::npos) << c.recommendation;
+  EXPECT_EQ(c.recommendation.find("data for"), std::string::npos) << c.recommendation;
+
+  // Two frequencies for three parameters: met whatever the model, and said so.
+  Problem few = right;
+  few.measured.resize(2);
+  for (MeasuredMode& m : few.measured) m.shape = Vector();
+  const Diagnosis f = diagnose(few, few.initial_values());
+  EXPECT_FALSE(f.model_form_error);
+  EXPECT_NE(f.recommendation.find("With 2 data for 3 parameters"), std::string::npos) << f.recommendation;
 
   // A 10 % heavier block is found, and the loop ends once the model meets the data.
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1"}, 1, false);
