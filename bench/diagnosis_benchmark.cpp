@@ -1111,6 +1111,10 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("unknown argument " + a + " (--help)");
       }
     }
+    // Detectability and the scores weight by the noise: noise-free data are diagnose's own case
+    // (its --resolution), not this benchmark's.
+    if (!(args.noise.frequency > 0) || !(args.noise.shape >= 0))
+      throw std::invalid_argument("--noise-freq must be > 0 and --noise-shape >= 0: the cases are scored against the noise");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 2;
