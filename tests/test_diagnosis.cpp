@@ -312,6 +312,18 @@ TEST(ChiSquare, CriticalValuesAndNoiseWeights) {
   EXPECT_THROW(noise_weighted(problem, MeasurementNoise{0, 0.02, 1}), std::invalid_argument);
 }
 
+// Against tabulated F quantiles (and F(1, nu2) = t_nu2^2: t_3 at 0.025 is 3.182446).
+TEST(FDistribution, CriticalValuesMatchTablesAndTendToTheChiSquares) {
+  EXPECT_NEAR(f_critical_value(0.05, 1, 10), 4.964603, 1e-5);
+  EXPECT_NEAR(f_critical_value(0.05, 1, 3), 3.182446 * 3.182446, 1e-4);
+  EXPECT_NEAR(f_critical_value(0.01, 1, 100), 6.895281, 1e-4);
+  EXPECT_NEAR(f_critical_value(0.05, 4, 20), 2.866081, 1e-5);
+  EXPECT_NEAR(f_upper_tail(f_critical_value(1e-6, 1, 40), 1, 40), 1e-6, 1e-12);
+  EXPECT_NEAR(f_critical_value(1e-4, 1, 100000), chi_square_critical_value(1e-4, 1), 2e-3);
+  EXPECT_DOUBLE_EQ(f_upper_tail(0, 1, 5), 1);
+  EXPECT_THROW(f_critical_value(0.05, 1, 0), std::invalid_argument);
+}
+
 /// The effect-ranking tests' problem: a joint's krx hidden (20), the noise stated.
 Problem HiddenKrxProblem() { return noise_weighted(WithHiddenEffect({"j.krx=20"}, 1), MeasurementNoise{0.002, 0.02, 1}); }
 
@@ -1426,6 +1438,12 @@ TEST(Diagnosis, WithoutStatedNoiseTheObjectiveWeightsStandIn) {
   EXPECT_EQ(d.ranking.effects[0].candidate.name, "j.krx");
   EXPECT_TRUE(std::isnan(d.ranking.effects[0].standard_error));
   EXPECT_NE(d.recommendation.find("Without a stated noise"), std::string::npos) << d.recommendation;
+  // The gain is tested against F(1, n - p - 1), the noise estimated from the refit's residual; on
+  // 7 frequencies and shapes the chi-square(1) value would be a tenth lower.
+  const double alpha = options.ranking.significance / d.ranking.screened;
+  const int dof = d.ranking.num_data - static_cast<int>(problem.parameters.size()) - 1;
+  EXPECT_NEAR(d.ranking.critical_value, f_critical_value(alpha, 1, dof), 1e-9 * d.ranking.critical_value);
+  EXPECT_GT(d.ranking.critical_value, chi_square_critical_value(alpha, 1));
 }
 
 // Noise-free data and no stated noise, as a synthetic problem gives: the right model, calibrated,

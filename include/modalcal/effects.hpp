@@ -384,6 +384,12 @@ MODALCAL_EXPORT ScreenMap screen_map(const Model& model, const EffectRanking& ra
 /// The map's first `rows` places as a table: score, place, location.
 MODALCAL_EXPORT std::string format_screen_map(const ScreenMap& map, int rows = 5);
 
+/// The critical value an effect's gain must pass at level `alpha`, a model with `num_parameters`
+/// fitted: with a stated noise the chi-square(1) value; without one the F(1, n - num_parameters)
+/// value, the noise estimated from the refit's residual (infinite when no degree of freedom is
+/// left, n = ranking.num_data: no gain can then be told from noise).
+MODALCAL_EXPORT double gain_critical_value(const EffectRanking& ranking, double alpha, int num_parameters);
+
 /// Screens `candidates` at the calibrated parameters `calibrated` of `problem` (weighted by its
 /// measurement noise when it has one, see noise_weighted) and refits the best ones.
 /// `problem` must be the weighted problem the calibration minimized.

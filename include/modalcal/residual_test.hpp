@@ -105,4 +105,14 @@ MODALCAL_EXPORT double chi_square_critical_value(double alpha, int nu);
 /// upper incomplete gamma function). Range: nu >= 1, x >= 0.
 MODALCAL_EXPORT double chi_square_upper_tail(double x, int nu);
 
+/// Upper tail of the F distribution, \f$P(F_{\nu_1,\nu_2} > f) = I_{\nu_2/(\nu_2+\nu_1 f)}(\nu_2/2, \nu_1/2)\f$
+/// (regularized incomplete beta function). The test of an effect's gain without a stated noise,
+/// where the noise variance is estimated from \f$\nu_2\f$ degrees of freedom of residual.
+/// Range: nu1, nu2 >= 1, f >= 0.
+MODALCAL_EXPORT double f_upper_tail(double f, int nu1, int nu2);
+
+/// The critical value c with \f$P(F_{\nu_1,\nu_2} > c) = \alpha\f$ (bisection on f_upper_tail); tends
+/// to chi_square_critical_value(alpha, nu1) / nu1 as nu2 grows. Range: nu1, nu2 >= 1, alpha in (0, 1).
+MODALCAL_EXPORT double f_critical_value(double alpha, int nu1, int nu2);
+
 }  // namespace modalcal

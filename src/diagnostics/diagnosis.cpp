@@ -481,8 +481,9 @@ size_t accepted_on_bound(const Diagnosis& d, const LoopState& state) {
 /// `made`: the states without each effect of `*state` made already (by the exchange pass).
 void backward_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, StatesWithout made,
                    Diagnosis* d) {
-  const double critical = chi_square_critical_value(options.ranking.significance, 1);
   while (!state->effects.empty()) {
+    const double critical = gain_critical_value(d->rankings.front(), options.ranking.significance,
+                                                static_cast<int>(state->parameters.size()));
     std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options, std::move(made));
     made = StatesWithout();
     size_t weakest = without.size();

@@ -92,6 +92,16 @@ Misfit misfit_of(const Objective& objective, const Evaluation& e, int num_parame
   return m;
 }
 
+}  // namespace
+
+double gain_critical_value(const EffectRanking& ranking, double alpha, int num_parameters) {
+  if (ranking.noise_known) return chi_square_critical_value(alpha, 1);
+  const int dof = ranking.num_data - num_parameters;
+  return dof >= 1 ? f_critical_value(alpha, 1, dof) : INFINITY;
+}
+
+namespace {
+
 std::string format_value(double v) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.3g", v);
@@ -834,7 +844,7 @@ EffectRanking detail::rank_effects_with(Objective& objective, const Vector& cali
   // Refits of the best predictions: every calibration parameter free, the effect started at its
   // first-order value (or its declared start).
   const Clock::time_point refit_start = Clock::now();
-  ranking.critical_value = chi_square_critical_value(options.significance / std::max(1, ranking.screened), 1);
+  ranking.critical_value = gain_critical_value(ranking, options.significance / std::max(1, ranking.screened), np + 1);
   detail::StepSpan step(objective, calibrated, options);
   refit_best(problem, options, ranking, &step, &screened);
   // Refitted first, the significant ones before the others, each by score; then the rest by
@@ -873,10 +883,12 @@ std::string format_effect_ranking(const EffectRanking& ranking, int max_rows) {
                   r.refitted ? (r.significant ? (r.at_bound ? "at bound" : "yes") : "no") : "-");
     text += line;
   }
+  const std::string test = ranking.noise_known ? "chi-square(1)"
+                                                : "F(1, " + std::to_string(ranking.dof_before - 1) + ") of the refit's gain";
   std::snprintf(line, sizeof line,
                 "(predicted: first-order reduction of the %s; achieved: by a refit with every parameter free; "
-                "significant: above %.3g, the chi-square(1) value at the significance level / %d candidates)\n",
-                unit, ranking.critical_value, ranking.screened);
+                "significant: above %.3g, the %s value at the significance level / %d candidates)\n",
+                unit, ranking.critical_value, test.c_str(), ranking.screened);
   text += line;
   for (int k = 0; k < rows; ++k) {
     const RankedEffect& r = ranking.effects[k];

@@ -52,6 +52,34 @@ double upper_gamma_fraction(double a, double x) {
   return std::exp(-x + a * std::log(x) - log_gamma(a)) * h;
 }
 
+// Regularized incomplete beta I_x(a, b) by its continued fraction (modified Lentz), which
+// converges fast for x < (a + 1) / (a + b + 2); the other side by I_x(a, b) = 1 - I_{1-x}(b, a).
+double incomplete_beta(double a, double b, double x) {
+  if (x <= 0) return 0;
+  if (x >= 1) return 1;
+  if (x > (a + 1) / (a + b + 2)) return 1 - incomplete_beta(b, a, 1 - x);
+  const double tiny = 1e-300;
+  double c = 1, d = 1 - (a + b) * x / (a + 1);
+  if (std::abs(d) < tiny) d = tiny;
+  d = 1 / d;
+  double h = d;
+  for (int m = 1; m < 1000; ++m) {
+    for (int half = 0; half < 2; ++half) {  // the even term, then the odd one
+      const double num = half == 0 ? m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
+                                   : -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1));
+      d = 1 + num * d;
+      if (std::abs(d) < tiny) d = tiny;
+      c = 1 + num / c;
+      if (std::abs(c) < tiny) c = tiny;
+      d = 1 / d;
+      h *= d * c;
+    }
+    if (std::abs(d * c - 1) < 1e-16) break;
+  }
+  const double front = std::exp(log_gamma(a + b) - log_gamma(a) - log_gamma(b) + a * std::log(x) + b * std::log1p(-x));
+  return front * h / a;
+}
+
 std::string percent(double x) {
   std::ostringstream s;
   s.precision(3);
@@ -207,6 +235,27 @@ ResidualTest test_residual(const Objective& objective, const Evaluation& evaluat
   }
   test.verdict = v.str();
   return test;
+}
+
+double f_upper_tail(double f, int nu1, int nu2) {
+  if (nu1 < 1 || nu2 < 1)
+    throw std::invalid_argument("f_upper_tail: need nu1, nu2 >= 1, got " + std::to_string(nu1) + ", " + std::to_string(nu2));
+  if (!(f >= 0)) throw std::invalid_argument("f_upper_tail: f must be >= 0 and not NaN");
+  if (std::isinf(f)) return 0;
+  return incomplete_beta(0.5 * nu2, 0.5 * nu1, nu2 / (nu2 + nu1 * f));
+}
+
+double f_critical_value(double alpha, int nu1, int nu2) {
+  if (nu1 < 1 || nu2 < 1 || !(alpha > 0 && alpha < 1))
+    throw std::invalid_argument("f_critical_value: need nu1, nu2 >= 1 and alpha in (0, 1), got nu1 = " +
+                                std::to_string(nu1) + ", nu2 = " + std::to_string(nu2) + ", alpha = " + std::to_string(alpha));
+  double lo = 0, hi = 10;
+  while (f_upper_tail(hi, nu1, nu2) > alpha) hi *= 2;
+  for (int k = 0; k < 300 && hi - lo > 1e-12 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (f_upper_tail(mid, nu1, nu2) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
 }
 
 }  // namespace modalcal
