@@ -473,6 +473,24 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
 // The loop started from an enabled effect that releases a support (which, once released, could
 // not be described again on the changed model); the same effect added again is bad input; and
 // with no effect kept, --write-problem still writes a problem that calibrate loads.
+// A bundled synthetic problem: noise-free data of the right model, no noise stated. The JSON
+// says the fit meets the data to their resolution, and where the calibration started.
+TEST(Cli, DiagnoseOfNoiseFreeDataOfTheRightModelAsksForNothing) {
+  const std::string dir =
+      std::filesystem::path(testing::WriteTempFile("noise_free_marker.txt", "")).parent_path().string();
+  const CliRun run = RunCli("diagnose " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
+                            " --quiet --jobs 1 --json " + dir + "/noise_free.json");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("No model-form error: with no stated noise"), std::string::npos) << run.output;
+  const nlohmann::json d = nlohmann::json::parse(ReadFile(dir + "/noise_free.json"));
+  EXPECT_EQ(d["model_form_error"], false);
+  EXPECT_EQ(d["residual_final"]["at_resolution"], true);
+  EXPECT_TRUE(d["residual_final"]["p_value"].is_null());
+  EXPECT_EQ(d["parameters"][0]["name"], "conn_kry");
+  EXPECT_EQ(d["parameters"][0]["initial"], 200.0);  // the file's start, not where a later walk began
+  EXPECT_EQ(d["accepted"].size(), 0u);
+}
+
 TEST(Cli, DiagnoseStartsFromAnEnabledSupportAndWritesAProblemWithNoEffectKept) {
   const std::string study = testing::WriteTipMassStudy();
   const std::string dir = std::filesystem::path(study).parent_path().string();

@@ -598,6 +598,13 @@ std::vector<Row> Rows() {
         "  modes:\n    - {frequency_hz: 3, pair: {model_mode: 1}}\n    - {frequency_hz: 4, pair: {model_mode: 1}}")}},
        "modes <dir>/pair.yaml", 2,
        "pair.yaml:19: measured mode 2: pairs with model mode 1, as measured mode 1 (line 18) does"},
+      {"mode-pasted-twice", "a measured mode listed twice: the same frequency and shape",
+       {{"dup.yaml",
+        Replace(Bar(), "  synthetic: {modes: [1, 2], shapes: false}",
+                "  modes:\n    - {frequency_hz: 3, shape: [1, 2, 3, 4, 5, 6]}\n"
+                "    - {frequency_hz: 3, shape: [1, 2, 3, 4, 5, 6]}") +
+            "sensors:\n  - {node_set: tip, directions: [y]}\n"}},
+       "modes <dir>/dup.yaml", 2, "dup.yaml:19: measured mode 2: repeats measured mode 1 (line 18)"},
       {"add-twice", "`--add` naming one effect twice", {{"bar.yaml", Bar()}},
        "calibrate <dir>/bar.yaml --add support@root:kx --add support@root:kx", 2,
        "error: --add: effect 'support@root:kx' is support_root.kx, which the problem's enabled effects or an earlier --add already add"},

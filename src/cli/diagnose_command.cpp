@@ -105,7 +105,7 @@ nlohmann::json residual_json(const FitState& fit) {
                            {"model_mode", pair.model + 1},
                            {"model_hz", pair.model_hz},
                            {"error_percent", 100 * (pair.model_hz / pair.measured_hz - 1)},
-                           {"mac", json_number(pair.mac)}};
+                           {"mac", pair.mac >= 0 ? json_number(pair.mac) : nlohmann::json()}};
     if (fit.test)
       for (const ModeResidual& m : fit.test->modes)
         if (m.measured == pair.measured) {

@@ -189,7 +189,10 @@ void add_kind_refits(const std::vector<RankedEffect>& screened, const RankingOpt
 }
 
 /// Two walks' counts as one.
+/// `then` as the summary of both walks: it started where `first` did, and counts the work of both.
 void add_counts(const ReducedSummary& first, ReducedSummary* then) {
+  if (first.initial.size() > 0) then->initial = first.initial;
+  then->seconds += first.seconds;
   then->iterations += first.iterations;
   then->forward_solves += first.forward_solves;
   then->linear_solves += first.linear_solves;

@@ -481,6 +481,7 @@ PairingRule Loader::pairing(const Field& f, bool has_shape) const {
 }
 
 void Loader::check_paired_once(const Field& item) const {
+  check_not_repeated(item);
   const PairingRule& rule = problem_.measured.back().pairing;
   if (rule.kind == PairingRule::Kind::Mac) return;
   for (size_t k = 0; k + 1 < problem_.measured.size(); ++k) {
@@ -495,6 +496,24 @@ void Loader::check_paired_once(const Field& item) const {
     fail_at(item.line, "measured mode " + std::to_string(problem_.measured.size()),
             "pairs with " + model_mode + ", as measured mode " + std::to_string(k + 1) + " (line " +
                    std::to_string(earlier.source_line) + ") does; each model mode pairs with one measured mode");
+  }
+}
+
+// A mode pasted twice (the same frequency and the same shape) pairs with two model modes and
+// drags the calibration far off. Two modes at one frequency, a repeated root, have shapes apart.
+void Loader::check_not_repeated(const Field& item) const {
+  const MeasuredMode& last = problem_.measured.back();
+  if (last.shape.size() == 0) return;
+  for (size_t k = 0; k + 1 < problem_.measured.size(); ++k) {
+    const MeasuredMode& earlier = problem_.measured[k];
+    if (earlier.shape.size() != last.shape.size() ||
+        !(std::abs(earlier.frequency_hz - last.frequency_hz) <= 1e-9 * last.frequency_hz))
+      continue;
+    const double dot = earlier.shape.dot(last.shape);
+    if (dot * dot < (1 - 1e-9) * earlier.shape.squaredNorm() * last.shape.squaredNorm()) continue;
+    fail_at(item.line, "measured mode " + std::to_string(problem_.measured.size()),
+            "repeats measured mode " + std::to_string(k + 1) + " (line " + std::to_string(earlier.source_line) +
+                "): the same frequency and shape, listed twice? (two modes at one frequency have different shapes)");
   }
 }
 

@@ -166,6 +166,8 @@ class Loader {
   void check_computed(const Field& f, int mode) const;
   /// Fails at `item` when the last measured mode pairs by index with a model mode an earlier one pairs with.
   void check_paired_once(const Field& item) const;
+  /// Fails at `item` when the last measured mode has an earlier one's frequency and shape (pasted twice).
+  void check_not_repeated(const Field& item) const;
   SyntheticSpec synthetic(const Field& f) const;
   detail::TestDataSelection test_data(const Field& f) const;
 
