@@ -278,6 +278,12 @@ struct MODALCAL_EXPORT Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
   FitState before;             ///< at its result
+  /// When the first calibration stopped in a local minimum that the loop left (its end, with no
+  /// effect kept, fitted the data lower by more than a step's critical value): that calibration's
+  /// X² (2J without a stated noise). The diagnosis was then run again from the loop's end, and
+  /// `calibration` and `before` are that run's (calibration.initial stays the caller's start).
+  /// NaN otherwise.
+  double first_calibration_local_minimum = NAN;
   std::optional<DiscretizationEstimate> discretization;  ///< with options.finer_mesh
   std::optional<Localization> localization;
   std::string localization_note;  ///< why there is none, when there is none

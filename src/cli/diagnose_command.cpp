@@ -282,6 +282,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   if (d.noise_known)
     json["noise"] = {{"frequency", problem.measurement_noise->frequency}, {"shape", problem.measurement_noise->shape}};
   json["model_form_error"] = d.model_form_error;
+  json["first_calibration_local_minimum"] = json_number(d.first_calibration_local_minimum);
   json["calibration"] = {{"status", to_string(d.calibration.status)},
                          {"iterations", d.calibration.iterations},
                          {"forward_solves", d.calibration.forward_solves},

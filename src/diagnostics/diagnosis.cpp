@@ -610,7 +610,16 @@ std::string discretization_text(const Diagnosis& d) {
 }
 
 std::string recommendation_text(const Diagnosis& d, double resolution) {
-  return discretization_text(d) + effects_text(d, resolution);
+  std::string restarted;
+  if (std::isfinite(d.first_calibration_local_minimum)) {
+    char text[300];
+    std::snprintf(text, sizeof text,
+                  "The first calibration stopped in a local minimum (%s %.4g); the loop's refits found a lower one "
+                  "with the same model (%.4g), and the diagnosis was run again from there. ",
+                  chi2_text(d.noise_known).c_str(), d.first_calibration_local_minimum, d.before.statistic);
+    restarted = text;
+  }
+  return restarted + discretization_text(d) + effects_text(d, resolution);
 }
 
 /// " X, significant, ends on a bound of its range (value V): the data ask for more change than any
@@ -1125,14 +1134,10 @@ DiagnosisOptions in_misfit_units(const Problem& problem, DiagnosisOptions option
 
 }  // namespace
 
-Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& given) {
-  std::string error;
-  if (!given.IsValid(&error)) throw std::invalid_argument("DiagnosisOptions: " + error);
-  const DiagnosisOptions options = in_misfit_units(problem, given);
-  if (start.size() != static_cast<int>(problem.parameters.size()))
-    throw std::invalid_argument("diagnose: " + std::to_string(start.size()) + " start values for " +
-                                std::to_string(problem.parameters.size()) + " parameters");
-  check_starting_effects(problem, options);
+namespace {
+
+/// The diagnosis from the nominal calibration started at `start`.
+Diagnosis diagnose_from(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
   Diagnosis d;
   d.noise_known = has_noise(problem);
   calibrate_nominal(weighted_if(d.noise_known, problem), start, options, &d.calibration, &d.before);
@@ -1151,6 +1156,35 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   if (!d.accepted().empty()) {
     d.recommended = rank_of(d.ranking, d.steps.front().effect.candidate.name) - 1;
     d.after = d.final_fit;
+  }
+  return d;
+}
+
+/// True when the loop ended with the problem's model as it is (no effect kept, the data as
+/// measured) at a calibration lower than the first by more than a step's critical value: the
+/// first stopped in a local minimum, which a refit with some effect left before the backward
+/// pass dropped the effect again, and every screen was made from there.
+bool left_a_local_minimum(const Diagnosis& d) {
+  return d.effects.empty() && !(d.discretization && d.discretization->corrected) && !d.rankings.empty() &&
+         d.final_fit.statistic < d.before.statistic - d.rankings.front().critical_value;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisOptions& given) {
+  std::string error;
+  if (!given.IsValid(&error)) throw std::invalid_argument("DiagnosisOptions: " + error);
+  const DiagnosisOptions options = in_misfit_units(problem, given);
+  if (start.size() != static_cast<int>(problem.parameters.size()))
+    throw std::invalid_argument("diagnose: " + std::to_string(start.size()) + " start values for " +
+                                std::to_string(problem.parameters.size()) + " parameters");
+  check_starting_effects(problem, options);
+  Diagnosis d = diagnose_from(problem, start, options);
+  if (left_a_local_minimum(d)) {  // once: from the lower minimum, the screens are the model's
+    const double first = d.before.statistic;
+    d = diagnose_from(problem, d.final_parameters, options);
+    d.calibration.initial = start;
+    d.first_calibration_local_minimum = first;
   }
   d.recommendation = recommendation_text(d, options.ranking.resolution);
   return d;
@@ -1187,6 +1221,8 @@ std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   text += "\n" + d.recommendation + "\n";
   if (d.after) {
     const Problem with = problem_with_diagnosed_effects(problem, d);
+    if (d.discretization && d.discretization->corrected)
+      text += "\n(measured: the data corrected for the mesh, each frequency moved by its change on the finer mesh)";
     text += "\n" + format_before_after(with, d.before, *d.after, "nominal", "with effects");
   }
   return text;
