@@ -1459,6 +1459,8 @@ TEST(Diagnosis, WithoutStatedNoiseDataTheModelMeetsToTheirResolutionAskForNothin
   for (const RankedEffect& r : c.ranking.effects) EXPECT_FALSE(r.significant) << r.candidate.name;
   EXPECT_NE(c.recommendation.find("No model-form error"), std::string::npos) << c.recommendation;
   EXPECT_EQ(c.recommendation.find("data for"), std::string::npos) << c.recommendation;
+  ASSERT_FALSE(c.map.places.empty());
+  EXPECT_LT(c.map.places.front().score, 2) << c.map.places.front().what;  // flat: nothing to see
 
   // Two frequencies for three parameters: met whatever the model, and said so.
   Problem few = right;
@@ -1474,6 +1476,9 @@ TEST(Diagnosis, WithoutStatedNoiseDataTheModelMeetsToTheirResolutionAskForNothin
   EXPECT_FALSE(d.before.test);
   EXPECT_TRUE(d.model_form_error);
   EXPECT_EQ(d.accepted(), std::vector<std::string>{"top.mass_scale"}) << format_diagnosis(hidden, d);
+  // The map in units of the noise the residual estimates: a peak far above noise's (about 4).
+  ASSERT_FALSE(d.map.places.empty());
+  EXPECT_GT(d.map.places.front().score, 6) << d.map.places.front().what;
   EXPECT_TRUE(d.at_resolution);
   EXPECT_NE(d.recommendation.find("the data's resolution"), std::string::npos) << d.recommendation;
 }

@@ -353,7 +353,9 @@ struct MODALCAL_EXPORT EffectRanking {
 /// variable, its score statistic, wherever it acts: each family's map is flat up to noise, and a
 /// missing effect shows as a peak. The scores combine a place's candidates as
 /// \f$-\log_{10} p\f$ of the best one, p Šidák-corrected for their number
-/// (\f$p = 1 - (1 - p_1)^k\f$), so they too are flat in distribution under noise.
+/// (\f$p = 1 - (1 - p_1)^k\f$), so they too are flat in distribution under noise. Without a stated
+/// noise the predictions (in 2J) are first divided by the noise variance the residual estimates,
+/// 2J / dof, at least EffectRanking::resolution_variance.
 struct MODALCAL_EXPORT ScreenMap {
   Vector node_mass;     ///< per model node: an added point mass (NaN where none was screened)
   Matrix node_spring;   ///< per node, 3 columns: a spring to ground along x, y, z (NaN likewise)

@@ -40,7 +40,8 @@ int single_node(const Model& model, const ModelChange& change) {
 /// The map under construction: per-place bests and counts, turned into scores at the end.
 class MapBuilder {
  public:
-  explicit MapBuilder(const Model& model) : model_(model) {
+  /// `unit`: what a unit of chi-square is in the predictions' units (1 with a stated noise).
+  MapBuilder(const Model& model, double unit) : model_(model), unit_(unit) {
     const int nn = model.num_nodes(), ne = model.num_elements();
     for (const ElementBlock& b : model.blocks) first_element_.push_back(first_element_.back() + b.num_elements());
     map_.node_mass = Vector::Constant(nn, kNaN);
@@ -85,7 +86,7 @@ class MapBuilder {
     const int nn = model_.num_nodes(), ne = model_.num_elements();
     map_.node_score = Vector::Zero(nn);
     for (int v = 0; v < nn; ++v) {
-      map_.node_score[v] = score(node_best_[v], node_count_[v]);
+      map_.node_score[v] = score(node_best_[v] / unit_, node_count_[v]);
       if (std::isnan(map_.node_mass[v]) && map_.node_spring.row(v).array().isNaN().all()) continue;
       std::string kind = "added mass";  // name the node's best addition
       for (int c = 0; c < 3; ++c)
@@ -95,7 +96,7 @@ class MapBuilder {
                              map_.node_score[v]});
     }
     map_.element_score = Vector::Zero(ne);
-    for (int k = 0; k < ne; ++k) map_.element_score[k] = score(element_best_[k], element_count_[k]);
+    for (int k = 0; k < ne; ++k) map_.element_score[k] = score(element_best_[k] / unit_, element_count_[k]);
     std::stable_sort(map_.places.begin(), map_.places.end(),
                      [](const ScreenMap::Place& a, const ScreenMap::Place& b) { return a.score > b.score; });
     return std::move(map_);
@@ -115,7 +116,9 @@ class MapBuilder {
       element_best_[k] = larger(element_best_[k], x);
     }
   }
-  void place(const std::string& what, const Vec3& where, double x) { map_.places.push_back({what, where, score(x, 1)}); }
+  void place(const std::string& what, const Vec3& where, double x) {
+    map_.places.push_back({what, where, score(x / unit_, 1)});
+  }
   int block_index(const ModelChange& change) const {
     if (change.kind != ModelChange::Kind::SetProperty) return -1;
     for (size_t b = 0; b < model_.blocks.size(); ++b)
@@ -135,6 +138,7 @@ class MapBuilder {
   }
 
   const Model& model_;
+  const double unit_;
   std::vector<int> first_element_{0};  // of each block, in the model-wide numbering
   ScreenMap map_;
   Vector node_best_, element_best_;
@@ -144,7 +148,12 @@ class MapBuilder {
 }  // namespace
 
 ScreenMap screen_map(const Model& model, const EffectRanking& ranking) {
-  MapBuilder builder(model);
+  // Without a stated noise the predictions are in 2J: scaled by the noise the residual itself
+  // estimates (never below the data's resolution), as the F test does.
+  const double unit = ranking.noise_known ? 1.0
+                                          : std::max(ranking.chi2_before / std::max(1, ranking.dof_before),
+                                                     ranking.resolution_variance);
+  MapBuilder builder(model, unit > 0 ? unit : 1.0);
   for (const RankedEffect& r : ranking.effects) builder.add(r);
   return builder.finish();
 }
