@@ -1132,10 +1132,6 @@ DiagnosisOptions in_misfit_units(const Problem& problem, DiagnosisOptions option
   return options;
 }
 
-}  // namespace
-
-namespace {
-
 /// The diagnosis from the nominal calibration started at `start`.
 Diagnosis diagnose_from(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
   Diagnosis d;
