@@ -1468,7 +1468,8 @@ TEST(Diagnosis, WithoutStatedNoiseDataTheModelMeetsToTheirResolutionAskForNothin
   for (MeasuredMode& m : few.measured) m.shape = Vector();
   const Diagnosis f = diagnose(few, few.initial_values());
   EXPECT_FALSE(f.model_form_error);
-  EXPECT_NE(f.recommendation.find("With 2 data for 3 parameters"), std::string::npos) << f.recommendation;
+  EXPECT_NE(f.recommendation.find("No model-form error can be shown: with 2 data for 3 parameters"), std::string::npos)
+      << f.recommendation;
 
   // A 10 % heavier block is found, and the loop ends once the model meets the data.
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1"}, 1, false);

@@ -79,6 +79,12 @@ TEST(ResidualTest, AWrongParameterIsAModelFormErrorAndNamesItsModes) {
   const ResidualTest pass = test_residual(objective, right, noise, 0);
   EXPECT_FALSE(pass.model_form_error) << pass.verdict;
   EXPECT_NE(pass.verdict.find("consistent with the stated noise"), std::string::npos);
+  // As many parameters as data: no test is possible, and the verdict says so.
+  int data = 0;
+  for (const ModeResidual& m : pass.modes) data += m.dof;
+  const ResidualTest none = test_residual(objective, right, noise, data);
+  EXPECT_FALSE(none.model_form_error);
+  EXPECT_NE(none.verdict.find("cannot show a model-form error"), std::string::npos) << none.verdict;
 
   Vector wrong = problem.truth_values();
   wrong[0] *= 1.1;  // the first parameter 10 % off: far beyond 0.2 % frequency noise

@@ -57,7 +57,9 @@ struct MODALCAL_EXPORT ModeResidual {
 struct MODALCAL_EXPORT ResidualTest {
   double statistic = 0;      ///< X^2
   int dof = 0;               ///< nu (at least 1)
-  double p_value = 1;        ///< P(chi2_nu > X^2)
+  /// P(chi2_nu > X^2); NaN when there are no more data than calibrated parameters: the
+  /// calibration can then meet any data, nothing is tested, and model_form_error is false.
+  double p_value = 1;
   /// X^2 / nu: about 1 when the residual is noise.
   double reduced_chi2 = 0;
   bool model_form_error = false;  ///< p_value < significance

@@ -273,7 +273,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
   auto residual = [](const FitState& fit) {
     nlohmann::json r = {{"statistic", fit.statistic}};
     if (fit.test)
-      r.update({{"dof", fit.test->dof}, {"p_value", fit.test->p_value}, {"model_form_error", fit.test->model_form_error},
+      r.update({{"dof", fit.test->dof}, {"p_value", json_number(fit.test->p_value)}, {"model_form_error", fit.test->model_form_error},
                 {"verdict", fit.test->verdict}});
     return r;
   };

@@ -117,7 +117,7 @@ nlohmann::json residual_json(const FitState& fit) {
   }
   if (fit.test) {
     json["dof"] = fit.test->dof;
-    json["p_value"] = fit.test->p_value;
+    json["p_value"] = json_number(fit.test->p_value);
     json["reduced_chi2"] = fit.test->reduced_chi2;
     json["model_form_error"] = fit.test->model_form_error;
     json["verdict"] = fit.test->verdict;
@@ -269,7 +269,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
   for (const EffectCandidate& c : d.started_with) json["started_with"].push_back(c.name);
   json["residual_final"] = {{"statistic", d.final_fit.statistic},
                             {"dof", d.final_fit.test ? nlohmann::json(d.final_fit.test->dof) : nlohmann::json()},
-                            {"p_value", d.final_fit.test ? nlohmann::json(d.final_fit.test->p_value) : nlohmann::json()},
+                            {"p_value", d.final_fit.test ? json_number(d.final_fit.test->p_value) : nlohmann::json()},
                             {"model_form_error", d.final_fit.test ? nlohmann::json(d.final_fit.test->model_form_error)
                                                                   : nlohmann::json()},
                             {"at_resolution", d.final_fit.test ? nlohmann::json() : nlohmann::json(d.at_resolution)}};

@@ -641,13 +641,14 @@ std::string resolution_text(double resolution) {
   return text;
 }
 
-/// " With 2 data for 3 parameters, ..." when the calibration has as many parameters as data or
-/// more, else "": then any model meets the data, and no residual can show what is missing.
+/// "No model-form error can be shown: with 2 data for 3 parameters ..." when the calibration has as
+/// many parameters as data or more, else "": then any model meets the data, and no residual can
+/// show what is missing.
 std::string too_few_data_text(const Diagnosis& d) {
   if (d.rankings.empty() || d.rankings.front().num_data > d.calibration.final.size()) return "";
-  return " With " + std::to_string(d.rankings.front().num_data) + " data for " +
+  return "No model-form error can be shown: with " + std::to_string(d.rankings.front().num_data) + " data for " +
          std::to_string(d.calibration.final.size()) +
-         " parameters, the calibration can meet any data: measure more modes or shapes to test the model's form.";
+         " parameters the calibration can meet any data. Measure more modes or shapes to test the model's form.";
 }
 
 std::string effects_text(const Diagnosis& d, double resolution) {
@@ -657,13 +658,13 @@ std::string effects_text(const Diagnosis& d, double resolution) {
       return "Model-form error." + bound_limited_text(d) +
              " The missing physics is not among the candidates as they are bounded (declare your own under "
              "effects: in the problem file).";
+    if (!d.model_form_error && !too_few_data_text(d).empty()) return too_few_data_text(d);
     if (!d.model_form_error && !d.noise_known)
       return "No model-form error: with no stated noise, the calibrated model meets " + resolution_text(resolution) +
-             "; nothing smaller can be told apart, and nothing needs adding." + too_few_data_text(d);
+             "; nothing smaller can be told apart, and nothing needs adding.";
     if (!d.model_form_error)
       return "No model-form error: the calibrated residual is consistent with the stated noise and no candidate "
-             "effect explains a significant part of it; nothing needs adding." +
-             too_few_data_text(d);
+             "effect explains a significant part of it; nothing needs adding.";
     if (!d.noise_known)
       return "Model-form error, or noise: the calibrated model does not meet the data to their resolution, and no "
              "candidate effect explains the residual significantly. With no stated noise it is not known whether "

@@ -207,8 +207,17 @@ ResidualTest test_residual(const Objective& objective, const Evaluation& evaluat
   if (test.modes.empty()) throw std::invalid_argument("test_residual: every measured mode is switched off");
 
   test.dof = std::max(1, dof - num_parameters);
-  test.p_value = chi_square_upper_tail(test.statistic, test.dof);
   test.reduced_chi2 = test.statistic / test.dof;
+  if (dof <= num_parameters) {  // the calibration can meet any data: there is nothing to test
+    test.p_value = NAN;
+    std::ostringstream v;
+    v.precision(3);
+    v << "chi-square " << test.statistic << " on " << dof << " data for " << num_parameters
+      << " parameters: the calibration can meet any data, so the residual cannot show a model-form error.";
+    test.verdict = v.str();
+    return test;
+  }
+  test.p_value = chi_square_upper_tail(test.statistic, test.dof);
   test.model_form_error = test.p_value < options.significance;
   const double mode_level = options.significance / static_cast<double>(test.modes.size());
   std::vector<std::string> carriers;
