@@ -80,6 +80,19 @@ double incomplete_beta(double a, double b, double x) {
   return front * h / a;
 }
 
+/// The x >= 0 where a decreasing upper tail falls to alpha, by bisection to 1e-12 relative, the
+/// bracket grown from [0, hi] until it holds the point.
+template <class Tail>
+double upper_quantile(const Tail& tail, double alpha, double hi) {
+  double lo = 0;
+  while (tail(hi) > alpha) hi *= 2;
+  for (int k = 0; k < 300 && hi - lo > 1e-12 * hi; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (tail(mid) > alpha ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 std::string percent(double x) {
   std::ostringstream s;
   s.precision(3);
@@ -115,13 +128,7 @@ double chi_square_critical_value(double alpha, int nu) {
   if (nu < 1 || !(alpha > 0 && alpha < 1))
     throw std::invalid_argument("chi_square_critical_value: need nu >= 1 and alpha in (0, 1), got nu = " +
                                 std::to_string(nu) + ", alpha = " + std::to_string(alpha));
-  double lo = 0, hi = nu + 10.0;
-  while (chi_square_upper_tail(hi, nu) > alpha) hi *= 2;
-  for (int k = 0; k < 200 && hi - lo > 1e-12 * hi; ++k) {
-    const double mid = 0.5 * (lo + hi);
-    (chi_square_upper_tail(mid, nu) > alpha ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
+  return upper_quantile([nu](double x) { return chi_square_upper_tail(x, nu); }, alpha, nu + 10.0);
 }
 
 double resolution_variance(const Problem& problem, double resolution) {
@@ -258,13 +265,7 @@ double f_critical_value(double alpha, int nu1, int nu2) {
   if (nu1 < 1 || nu2 < 1 || !(alpha > 0 && alpha < 1))
     throw std::invalid_argument("f_critical_value: need nu1, nu2 >= 1 and alpha in (0, 1), got nu1 = " +
                                 std::to_string(nu1) + ", nu2 = " + std::to_string(nu2) + ", alpha = " + std::to_string(alpha));
-  double lo = 0, hi = 10;
-  while (f_upper_tail(hi, nu1, nu2) > alpha) hi *= 2;
-  for (int k = 0; k < 300 && hi - lo > 1e-12 * hi; ++k) {
-    const double mid = 0.5 * (lo + hi);
-    (f_upper_tail(mid, nu1, nu2) > alpha ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
+  return upper_quantile([nu1, nu2](double f) { return f_upper_tail(f, nu1, nu2); }, alpha, 10.0);
 }
 
 }  // namespace modalcal
