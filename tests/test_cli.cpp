@@ -524,6 +524,28 @@ TEST(Cli, DiagnoseLeavesALocalMinimumOfTheFirstCalibration) {
   }
 }
 
+// Bounds that keep every parameter from the values the data ask for: every calibration, and
+// refits with the parameters held on their bounds, end on a corner of the box. The check of a
+// walk's end there had no free direction left and read an empty matrix (exit 139).
+TEST(Cli, DiagnoseWithEveryParameterHeldOnABoundRunsToAVerdict) {
+  const std::string problem = testing::WriteTempFile(
+      "held_on_bounds.yaml",
+      "extends: " + testing::SourcePath("problems/portal-frame/hidden-mass.yaml") +
+          "\nparameters:\n"
+          "  conn_kry: {targets: [conn_1.kry, conn_2.kry], initial: 75, lower: 50, upper: 100, scaling: log}\n"
+          "  conn_krx: {targets: [conn_1.krx, conn_2.krx], initial: 1500, lower: 1000, upper: 2000, scaling: log}\n"
+          "  E: {targets: [column_1.E, column_2.E, beam.E], initial: 2.5e9, lower: 2e9, upper: 3e9, scaling: log}\n"
+          "  payload_mass: {targets: [payload.mass], initial: 3, lower: 2, upper: 4, scaling: log}\n");
+  const std::string json = std::filesystem::path(problem).parent_path().string() + "/held_on_bounds.json";
+  const CliRun run = RunCli("diagnose " + problem +
+                            " --quiet --jobs 1 --mesh-check 0 --max-steps 1 --first-step-alternatives 0 --json " + json);
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const nlohmann::json d = nlohmann::json::parse(ReadFile(json));
+  EXPECT_EQ(d["model_form_error"], true);
+  EXPECT_NEAR(d["parameters"][0]["final"].get<double>(), 100, 1e-6);  // held on conn_kry's upper bound
+  EXPECT_NEAR(d["parameters"][2]["final"].get<double>(), 3e9, 1e-6 * 3e9);
+}
+
 TEST(Cli, DiagnoseStartsFromAnEnabledSupportAndWritesAProblemWithNoEffectKept) {
   const std::string study = testing::WriteTipMassStudy();
   const std::string dir = std::filesystem::path(study).parent_path().string();

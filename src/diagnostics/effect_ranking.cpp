@@ -223,6 +223,7 @@ bool ends_on_the_whole_model(Objective& objective, const Vector& end, double spa
                       (end[j] >= q.upper - width && whole.gradient[j] < 0);
     if (!held) free.push_back(j);
   }
+  if (free.empty()) return true;  // every parameter held on a bound: no step is left to take
   Matrix J(in_span.jacobian.rows(), static_cast<Eigen::Index>(free.size()));
   Vector g(static_cast<Eigen::Index>(free.size()));
   for (size_t k = 0; k < free.size(); ++k) {

@@ -124,6 +124,7 @@ Vector damped_newton_direction(const ScaledProblem& problem, const Point& curren
   std::vector<int> free;
   for (int j = 0; j < current.x.size(); ++j)
     if (!active[j]) free.push_back(j);
+  if (free.empty()) return Vector::Zero(current.x.size());  // every variable held on a bound
   Matrix Hf(free.size(), free.size());
   Vector gf(free.size());
   for (size_t a = 0; a < free.size(); ++a) {
