@@ -625,6 +625,10 @@ TEST(EffectRanking, TheNeighbourRefitsWalkOnToWhereTheDataFitBest) {
   std::string error;
   EXPECT_FALSE(bad.IsValid(&error));
   EXPECT_NE(error.find("neighbour_rounds"), std::string::npos) << error;
+  bad = RankingOptions();
+  bad.neighbour_window_share = 1;
+  EXPECT_FALSE(bad.IsValid(&error));
+  EXPECT_NE(error.find("neighbour_window_share"), std::string::npos) << error;
 }
 
 /// The solves two rankings' refits spent, `tight`'s and `loose`'s, and how many refits compared.

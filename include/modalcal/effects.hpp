@@ -221,16 +221,23 @@ struct MODALCAL_EXPORT RankingOptions {
   double kind_refit_share = 0.8;
   /// Refits of the best refit's neighbours (its kind, within its neighbourhood), best predicted
   /// first, after the refits above; as many again for each other kind's best refit that scores
-  /// within the critical value of it. The choice above refits one candidate per neighbourhood,
+  /// within the critical value of it (or neighbour_window_share of its score). The choice above refits one candidate per neighbourhood,
   /// and for a large effect the first-order prediction does not rank the nodes of one
   /// neighbourhood reliably: a point mass refitted one node from the truth's leaves a residual
   /// that later steps fill with spurious effects. Range: >= 0.
   int neighbour_refits = 3;
   /// Rounds of neighbour refits. The first refits the best refit's neighbours and those of every
-  /// kind's best scoring within the critical value of it; each further round refits the
+  /// kind's best scoring close to it (neighbour_window_share); each further round refits the
   /// neighbours of a kind's best that moved in the round before, so that it can walk on to the
   /// place the data favour. 1: the first round only; 0: no neighbour refits. Range: >= 0.
   int neighbour_rounds = 3;
+  /// A kind's best refit starts neighbour refits while its score lies within the critical value
+  /// of the best one's, or within this share of the best score when that is wider. For a large
+  /// effect (a ΔX² of thousands) one neighbourhood's places part by more than the critical value
+  /// and the first-order prediction ranks them no better than that, so a kind a few tens behind
+  /// after the first refits can still fit best once it has walked to its best place.
+  /// Range: [0, 1).
+  double neighbour_window_share = 0.01;
   /// Name the effect by S = ΔX² − 2 ln(candidates of its kind) (see "Which effect" above); false:
   /// by ΔX² alone (every candidate equally likely a priori).
   bool equal_kind_prior = true;

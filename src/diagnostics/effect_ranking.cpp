@@ -623,11 +623,12 @@ void refit_chosen(const Problem& problem, const RankingOptions& options, const E
 }
 
 /// Where the neighbour refits start: the best-scoring acceptable refit of each kind with
-/// neighbours (a place), while its score lies within the critical value of the best one's: of
-/// kinds that close, the data hardly tell which, and the first refits' places are only
-/// first-order guesses. Those in `climbed` are left out.
+/// neighbours (a place), while its score lies within the critical value of the best one's, or
+/// within `window_share` of the best score when that is wider: of kinds that close, the data
+/// hardly tell which, and the first refits' places are only first-order guesses. Those in
+/// `climbed` are left out.
 std::vector<size_t> climb_starts(const std::vector<RankedEffect>& screened, double critical_value,
-                                 const std::vector<size_t>& climbed) {
+                                 double window_share, const std::vector<size_t>& climbed) {
   std::vector<size_t> best_of_kind;  // the best acceptable refit of each kind, by score
   for (size_t k = 0; k < screened.size(); ++k) {
     if (!screened[k].acceptable() || !screened[k].candidate.location) continue;
@@ -641,9 +642,10 @@ std::vector<size_t> climb_starts(const std::vector<RankedEffect>& screened, doub
   double best = -INFINITY;
   for (const RankedEffect& r : screened)
     if (r.acceptable()) best = std::max(best, r.score());
+  const double window = std::max(critical_value, window_share * best);
   std::vector<size_t> starts;
   for (size_t b : best_of_kind)
-    if (screened[b].score() >= best - critical_value && std::find(climbed.begin(), climbed.end(), b) == climbed.end())
+    if (screened[b].score() >= best - window && std::find(climbed.begin(), climbed.end(), b) == climbed.end())
       starts.push_back(b);
   return starts;
 }
@@ -670,7 +672,7 @@ void climb_neighbours(const Problem& problem, const RankingOptions& options, con
   std::vector<size_t> climbed;
   for (int round = 0; round < options.neighbour_rounds; ++round) {
     std::vector<size_t> chosen;
-    for (size_t start : climb_starts(*screened, ranking.critical_value, climbed)) {
+    for (size_t start : climb_starts(*screened, ranking.critical_value, options.neighbour_window_share, climbed)) {
       add_neighbours(*screened, start, options.neighbour_refits, &chosen);
       climbed.push_back(start);
     }
@@ -756,6 +758,8 @@ bool RankingOptions::IsValid(std::string* error) const {
   if (place_refits < 0) return bad("place_refits = " + detail::option_text(place_refits) + ": must be >= 0");
   if (neighbour_refits < 0) return bad("neighbour_refits = " + detail::option_text(neighbour_refits) + ": must be >= 0");
   if (neighbour_rounds < 0) return bad("neighbour_rounds = " + detail::option_text(neighbour_rounds) + ": must be >= 0");
+  if (!(neighbour_window_share >= 0 && neighbour_window_share < 1))
+    return bad("neighbour_window_share = " + detail::option_text(neighbour_window_share) + ": must be in [0, 1)");
   if (!(place_refit_share > 0 && place_refit_share <= 1))
     return bad("place_refit_share = " + detail::option_text(place_refit_share) + ": must be in (0, 1]");
   if (kind_refits < 0) return bad("kind_refits = " + detail::option_text(kind_refits) + ": must be >= 0");
