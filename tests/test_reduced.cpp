@@ -203,6 +203,38 @@ TEST(Lfu, SyntheticStudyLbfgsRecoversAllParametersWithin25Iterations) {
   EXPECT_LE(s.iterations, 25);
 }
 
+TEST(SpreadStart, FillsTheBoxEvenlyInTheOptimizersVariables) {
+  std::vector<Parameter> parameters(3);
+  parameters[0].lower = 10, parameters[0].upper = 1e4, parameters[0].scaling = Scaling::Log;
+  parameters[1].lower = -2, parameters[1].upper = 4, parameters[1].scaling = Scaling::Linear;
+  parameters[2].lower = 1, parameters[2].upper = 2, parameters[2].scaling = Scaling::None;
+  // Point 1 lies at 1/2, 1/3 and 1/5 of the ranges: of log10 for a log-scaled parameter
+  // (10^2.5), of the value otherwise.
+  const Vector first = spread_start(parameters, 1);
+  EXPECT_NEAR(first[0], std::pow(10.0, 2.5), 1e-9 * first[0]);
+  EXPECT_NEAR(first[1], 0.0, 1e-12);
+  EXPECT_NEAR(first[2], 1.2, 1e-12);
+  // The first 2^m - 1 points put one value in each of the 2^m strata of the first parameter's
+  // range (base 2), and the first 3^m - 1 in each of the second's 3^m, but for the one at 0.
+  std::vector<int> halves(8, 0), thirds(9, 0);
+  for (int k = 1; k <= 8; ++k) {
+    const Vector p = spread_start(parameters, k);
+    for (int j = 0; j < 3; ++j) {
+      EXPECT_GE(p[j], parameters[j].lower);
+      EXPECT_LE(p[j], parameters[j].upper);
+    }
+    const double u0 = (std::log10(p[0]) - 1) / 3, u1 = (p[1] + 2) / 6;
+    if (k <= 7) ++halves[static_cast<size_t>(std::floor(u0 * 8 + 1e-9))];
+    ++thirds[static_cast<size_t>(std::floor(u1 * 9 + 1e-9))];
+  }
+  EXPECT_EQ(halves, std::vector<int>({0, 1, 1, 1, 1, 1, 1, 1}));
+  EXPECT_EQ(thirds, std::vector<int>({0, 1, 1, 1, 1, 1, 1, 1, 1}));
+  parameters[2].upper = INFINITY, parameters[2].initial = 1.25;  // no box: the initial value
+  EXPECT_EQ(spread_start(parameters, 3)[2], 1.25);
+  EXPECT_THROW(spread_start(parameters, 0), std::invalid_argument);
+  EXPECT_THROW(spread_start(std::vector<Parameter>(65), 1), std::invalid_argument);
+}
+
 TEST(Lfu, ExperimentalCaseMatchesTheAxialModesAndFlagsAPoorlyIdentifiedParameter) {
   const Problem problem = LoadProblem(SourcePath("problems/lfu/experimental.yaml"));
   Objective objective(problem);

@@ -110,6 +110,14 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// and takes again the greedy path's screens, not another alternative's. Each costs up to a
   /// loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
+  /// When the first calibration's residual is more than the noise (or, without a stated noise,
+  /// the data's resolution), it is run again from this many further starts spread over the
+  /// parameters' bounds (spread_start()), through ranking.task_map, and the lowest end is kept. A
+  /// local minimum of the calibration looks exactly like a model-form error, and with few data
+  /// (frequencies only, or few sensors) a start far from the truth often ends in one. The
+  /// calibrations of the data corrected for the mesh start from the kept end. Each start costs up
+  /// to a calibration. Range: [0, 1000] (0: the caller's start only).
+  int calibration_starts = 4;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options), but for the function tolerance, 1e-5.
   /// It walks in a span of the model, its end checked on the whole model, as the refits do
@@ -278,12 +286,21 @@ struct MODALCAL_EXPORT Diagnosis {
   bool noise_known = false;
   ReducedSummary calibration;  ///< the nominal calibration
   FitState before;             ///< at its result
-  /// When the first calibration stopped in a local minimum that the loop left (its end, with no
-  /// effect kept, fitted the data lower by more than a step's critical value): that calibration's
-  /// X² (2J without a stated noise). The diagnosis was then run again from the loop's end, and
-  /// `calibration` and `before` are that run's (calibration.initial stays the caller's start).
-  /// NaN otherwise.
+  /// When the first calibration from the caller's start stopped in a local minimum: that
+  /// calibration's X² (2J without a stated noise); NaN otherwise. Either a calibration from a
+  /// further start ended lower (calibration_start > 0), or the loop left it: its end, with no
+  /// effect kept, fitted the data lower by more than a step's critical value, and the diagnosis
+  /// was run again from there (calibration_start = -1). `calibration` and `before` are then of
+  /// the lower minimum; calibration.initial stays the caller's start.
   double first_calibration_local_minimum = NAN;
+  /// Where the kept nominal calibration started: 0 the caller's start, k >= 1
+  /// spread_start(problem.parameters, k) (DiagnosisOptions::calibration_starts), -1 the end of a
+  /// loop that left the first calibration's local minimum.
+  int calibration_start = 0;
+  /// The calibration parameters the nominal calibration holds on a bound of their range, each as
+  /// "name (lower|upper bound V)": the data ask for values beyond the range given, and a residual
+  /// that a wider range removes is no model-form error (the recommendation says so).
+  std::vector<std::string> calibration_on_bounds;
   std::optional<DiscretizationEstimate> discretization;  ///< with options.finer_mesh
   std::optional<Localization> localization;
   std::string localization_note;  ///< why there is none, when there is none

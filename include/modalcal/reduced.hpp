@@ -134,4 +134,15 @@ MODALCAL_EXPORT double estimate_convergence_order(const std::vector<double>& err
 
 MODALCAL_EXPORT ReducedSummary minimize_reduced(Objective& objective, const Vector& p0, const ReducedOptions& options);
 
+/// The k-th of a sequence of starts spread over the parameters' box [lower, upper], for
+/// calibrations from several starts: point k of the Halton sequence, the radical inverse of k in
+/// base 2 for the first parameter, 3 for the second, 5, 7, ... (a fraction u in [0, 1) of the
+/// range), uniform in log10 of the value for a parameter with Scaling::Log and a positive lower
+/// bound, else in the value; a parameter without a finite box keeps its initial value. Point 1
+/// lies at u = 1/2, 1/3, 1/5, ...; the first points fill the box evenly in every projection, and
+/// the same on every machine (no random draws). Range: k >= 1, at most 64 parameters.
+/// Example: `spread_start(problem.parameters, 1)`.
+/// \throws std::invalid_argument for k < 1 or more than 64 parameters.
+MODALCAL_EXPORT Vector spread_start(const std::vector<Parameter>& parameters, int k);
+
 }  // namespace modalcal

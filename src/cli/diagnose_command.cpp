@@ -38,6 +38,7 @@ struct DiagnoseArgs {
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
+  int calibration_starts = DiagnosisOptions().calibration_starts;
   double mesh_check = 1.5;
   bool no_backward = false;
   bool no_exchange = false;
@@ -284,6 +285,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
   json["model_form_error"] = d.model_form_error;
   json["first_calibration_local_minimum"] = json_number(d.first_calibration_local_minimum);
   json["calibration"] = {{"status", to_string(d.calibration.status)},
+                         {"start", d.calibration_start},
                          {"iterations", d.calibration.iterations},
                          {"forward_solves", d.calibration.forward_solves},
                          {"time_s", d.calibration.seconds}};
@@ -293,6 +295,7 @@ nlohmann::json to_json(const Problem& problem, const Diagnosis& d) {
     json["parameters"].push_back({{"name", problem.parameters[j].name},
                                   {"initial", d.calibration.initial[j]},
                                   {"final", d.calibration.final[j]}});
+  json["calibration_on_bounds"] = d.calibration_on_bounds;
   json["residual_before"] = residual_json(d.before);
   json["residual_after"] = d.after ? residual_json(*d.after) : nlohmann::json();
   json["recommended"] =
@@ -419,6 +422,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.resolution = args.resolution;
   options.max_steps = args.max_steps;
   options.first_step_alternatives = args.first_step_alternatives;
+  options.calibration_starts = args.calibration_starts;
   options.candidates.region_elements = args.region_size;
   options.candidates.region_levels = args.region_levels;
   options.backward = !args.no_backward;
@@ -597,6 +601,12 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "the first step's next-best effects and keep the path that ends lowest (default " +
                       std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
       ->check(non_negative_number());
+  cmd->add_option("--calibration-starts", args->calibration_starts,
+                  "when the first calibration leaves more than the noise, calibrate again from this many starts "
+                  "spread over the parameters' bounds and keep the lowest: a local minimum looks like a model-form "
+                  "error (default " +
+                      std::to_string(DiagnosisOptions().calibration_starts) + "; 0: the given start only)")
+      ->check(FiniteRange(0, 1000));
   add_walk_flags(cmd, args.get());
   cmd->add_option("--add", args->add,
                   "start from the model with this effect, e.g. joint2.kry or point_mass@top:mass (repeatable)");

@@ -142,6 +142,10 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
     if (error) *error = "first_step_alternatives = " + detail::option_text(first_step_alternatives) + ": must be >= 0";
     return false;
   }
+  if (calibration_starts < 0 || calibration_starts > 1000) {
+    if (error) *error = "calibration_starts = " + detail::option_text(calibration_starts) + ": must be in [0, 1000]";
+    return false;
+  }
   return true;
 }
 
@@ -609,15 +613,47 @@ std::string discretization_text(const Diagnosis& d) {
   return text;
 }
 
+/// The calibration parameters of `problem` that `p` holds on a bound of their range (within
+/// 1e-6 of the range, in the optimizer's variables), each as "name (lower|upper bound V)".
+std::vector<std::string> held_on_bounds(const Problem& problem, const Vector& p) {
+  std::vector<std::string> held;
+  for (size_t j = 0; j < problem.parameters.size(); ++j) {
+    const Parameter& q = problem.parameters[j];
+    const bool in_log = q.scaling == Scaling::Log && q.lower > 0 && p[Eigen::Index(j)] > 0;
+    auto variable = [&](double v) { return in_log ? std::log10(v) : v; };
+    const double x = variable(p[Eigen::Index(j)]), lo = variable(q.lower), hi = variable(q.upper);
+    const double near = 1e-6 * (hi - lo);
+    if (!(std::abs(x - lo) <= near || std::abs(x - hi) <= near)) continue;
+    const bool lower = std::abs(x - lo) <= near;
+    held.push_back(q.name + " (" + (lower ? "lower" : "upper") + " bound " + detail::number_text(lower ? q.lower : q.upper, 4) +
+                   ")");
+  }
+  return held;
+}
+
+/// "The calibration ends with A (upper bound 100) and B (...) on a bound of their range: ..." or "".
+std::string held_on_bounds_text(const Diagnosis& d) {
+  if (d.calibration_on_bounds.empty() || !d.model_form_error) return "";
+  std::string names;
+  for (size_t k = 0; k < d.calibration_on_bounds.size(); ++k)
+    names += (k == 0 ? "" : k + 1 == d.calibration_on_bounds.size() ? " and " : ", ") + d.calibration_on_bounds[k];
+  return "The calibration ends with " + names +
+         " on a bound of the range you gave: the data ask for values beyond it. Unless those bounds are physical "
+         "limits, widen them and diagnose again: what a wider range removes is no model-form error. ";
+}
+
 std::string recommendation_text(const Diagnosis& d, double resolution) {
-  std::string restarted;
+  std::string restarted = held_on_bounds_text(d);
   if (std::isfinite(d.first_calibration_local_minimum)) {
     char text[300];
     std::snprintf(text, sizeof text,
-                  "The first calibration stopped in a local minimum (%s %.4g); the loop's refits found a lower one "
-                  "with the same model (%.4g), and the diagnosis was run again from there. ",
-                  chi2_text(d.noise_known).c_str(), d.first_calibration_local_minimum, d.before.statistic);
-    restarted = text;
+                  "The first calibration stopped in a local minimum (%s %.4g); %s found a lower one with the same "
+                  "model (%.4g), and the diagnosis %s there. ",
+                  chi2_text(d.noise_known).c_str(), d.first_calibration_local_minimum,
+                  d.calibration_start > 0 ? "a calibration from another start in the parameters' bounds"
+                                          : "the loop's refits",
+                  d.before.statistic, d.calibration_start > 0 ? "starts" : "was run again from");
+    restarted += text;
   }
   return restarted + discretization_text(d) + effects_text(d, resolution);
 }
@@ -771,9 +807,55 @@ Problem weighted_if(bool noise_known, const Problem& problem) {
   return noise_known ? noise_weighted(problem, *problem.measurement_noise) : problem;
 }
 
-/// The nominal calibration of `weighted` from `from`, and the fit at its result.
-void calibrate_nominal(const Problem& weighted, const Vector& from, const DiagnosisOptions& options,
-                       ReducedSummary* summary, FitState* fit) {
+/// The lowest of the calibrations of `weighted` from options.calibration_starts further starts
+/// (spread_start() 1, 2, ...), walked as `walk` says through the task map: its start's number when
+/// it ends lower than `fit` by more than the rounding of X² (summary and fit replaced, but for
+/// the summary's initial values), else 0.
+int calibrate_from_further_starts(const Problem& weighted, const DiagnosisOptions& options, RankingOptions walk,
+                                  ReducedSummary* summary, FitState* fit) {
+  walk.refit.progress = nullptr;  // the caller's display follows one calibration, and these may run at once
+  const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
+  const std::vector<std::string> outcomes = map(static_cast<size_t>(options.calibration_starts), [&](size_t k) {
+    Objective objective(weighted, options.ranking.objective);
+    const ReducedSummary from_k = detail::refit_walk(objective, spread_start(weighted.parameters, int(k) + 1), walk);
+    TaskCodec outcome;
+    outcome.put(from_k.final.size() == summary->final.size() ? from_k.final : Vector());
+    outcome.put(static_cast<double>(from_k.iterations));
+    outcome.put(static_cast<double>(from_k.forward_solves));
+    return outcome.str();
+  });
+  Objective objective(weighted, options.ranking.objective);
+  int kept = 0;
+  for (size_t k = 0; k < outcomes.size(); ++k) {
+    TaskCodec outcome(outcomes[k]);
+    const Vector p = outcome.get_vector();
+    const int iterations = static_cast<int>(outcome.get_number()), solves = static_cast<int>(outcome.get_number());
+    summary->forward_solves += solves;
+    if (p.size() == 0) continue;
+    FitState other = fit_of(objective, weighted, p, options.test);
+    if (!(other.statistic < fit->statistic * (1 - 1e-9))) continue;
+    *fit = std::move(other);
+    summary->final = p;
+    summary->iterations = iterations;
+    kept = static_cast<int>(k) + 1;
+  }
+  return kept;
+}
+
+/// Where the nominal calibration's kept run started, and what the caller's start came to when
+/// that was a further start.
+struct StartKept {
+  int start = 0;             ///< 0: the caller's; k: spread_start(parameters, k)
+  double given_end = NAN;    ///< X² (2J without a stated noise) of the run from the caller's start
+};
+
+/// The nominal calibration of `weighted` from `from`, and the fit at its result. With
+/// `further_starts`, when that fit is a model-form error (its residual more than the stated noise,
+/// or without one, than the data's resolution), calibrations from
+/// DiagnosisOptions::calibration_starts further starts too, the lowest kept: a local minimum of
+/// the calibration looks exactly like a model-form error.
+StartKept calibrate_nominal(const Problem& weighted, const Vector& from, const DiagnosisOptions& options,
+                            ReducedSummary* summary, FitState* fit, bool further_starts = false) {
   Objective objective(weighted, options.ranking.objective);
   RankingOptions walk = options.ranking;  // in a span, as the refits, with the calibration's own settings
   walk.refit = options.calibration;
@@ -781,6 +863,11 @@ void calibrate_nominal(const Problem& weighted, const Vector& from, const Diagno
   if (summary->final.size() != from.size())
     throw std::runtime_error("diagnose: the calibration could not start: " + summary->message);
   *fit = fit_of(objective, weighted, summary->final, options.test);  // the walk's check solved it there
+  const bool too_far = fit->test ? fit->test->model_form_error : !at_resolution(*fit, options.ranking.resolution);
+  if (!further_starts || !too_far || options.calibration_starts == 0) return {};
+  const double given_end = fit->statistic;
+  const int start = calibrate_from_further_starts(weighted, options, walk, summary, fit);
+  return start == 0 ? StartKept{} : StartKept{start, given_end};
 }
 
 /// The data moved by the finer mesh's change, with the allowance, and the calibration to start
@@ -1137,7 +1224,10 @@ DiagnosisOptions in_misfit_units(const Problem& problem, DiagnosisOptions option
 Diagnosis diagnose_from(const Problem& problem, const Vector& start, const DiagnosisOptions& options) {
   Diagnosis d;
   d.noise_known = has_noise(problem);
-  calibrate_nominal(weighted_if(d.noise_known, problem), start, options, &d.calibration, &d.before);
+  const StartKept kept =
+      calibrate_nominal(weighted_if(d.noise_known, problem), start, options, &d.calibration, &d.before, true);
+  d.calibration_start = kept.start;
+  d.first_calibration_local_minimum = kept.given_end;
   const std::optional<std::pair<Problem, Vector>> corrected =
       options.finer_mesh ? check_the_mesh(problem, options, &d) : std::nullopt;
   if (corrected)
@@ -1154,6 +1244,7 @@ Diagnosis diagnose_from(const Problem& problem, const Vector& start, const Diagn
     d.recommended = rank_of(d.ranking, d.steps.front().effect.candidate.name) - 1;
     d.after = d.final_fit;
   }
+  d.calibration.initial = start;  // the caller's, whichever run the kept calibration is
   return d;
 }
 
@@ -1178,11 +1269,14 @@ Diagnosis diagnose(const Problem& problem, const Vector& start, const DiagnosisO
   check_starting_effects(problem, options);
   Diagnosis d = diagnose_from(problem, start, options);
   if (left_a_local_minimum(d)) {  // once: from the lower minimum, the screens are the model's
-    const double first = d.before.statistic;
+    const double first = std::isfinite(d.first_calibration_local_minimum) ? d.first_calibration_local_minimum
+                                                                           : d.before.statistic;
     d = diagnose_from(problem, d.final_parameters, options);
     d.calibration.initial = start;
+    d.calibration_start = -1;
     d.first_calibration_local_minimum = first;
   }
+  d.calibration_on_bounds = held_on_bounds(problem, d.calibration.final);
   d.recommendation = recommendation_text(d, options.ranking.resolution);
   return d;
 }
@@ -1197,8 +1291,11 @@ std::vector<std::string> Diagnosis::accepted() const {
 std::string format_diagnosis(const Problem& problem, const Diagnosis& d) {
   std::string text;
   char line[320];
-  std::snprintf(line, sizeof line, "calibration: %s after %d iterations, %d forward solves\n",
-                to_string(d.calibration.status).c_str(), d.calibration.iterations, d.calibration.forward_solves);
+  std::snprintf(line, sizeof line, "calibration: %s after %d iterations, %d forward solves%s\n",
+                to_string(d.calibration.status).c_str(), d.calibration.iterations, d.calibration.forward_solves,
+                d.calibration_start > 0 ? (" (from start " + std::to_string(d.calibration_start) +
+                                           " in the parameters' bounds; the given start ended higher)").c_str()
+                                        : "");
   text += line;
   for (size_t j = 0; j < problem.parameters.size(); ++j) {
     std::snprintf(line, sizeof line, "  %-20s %13.5g\n", problem.parameters[j].name.c_str(), d.calibration.final[j]);
