@@ -40,6 +40,7 @@ struct CalibrateArgs {
   double refine = 0;
   int max_iterations = 100;
   double start_factor = 1;
+  int starts = 0;  // further starts spread over the bounds (--starts)
   ParameterChoice start;  // --params / --set: where to start
   double regularization = 0;
   bool quiet = false;
@@ -203,6 +204,42 @@ Calibrated calibrate(Objective& objective, const Vector& p0, const CalibrateArgs
   return {report, final, usable};
 }
 
+/// The calibration from p0 (calibrate()), and with --starts N from N further starts spread over
+/// the parameters' bounds (spread_start()), quietly: the run with the lowest misfit is kept. A
+/// line per start says where it began and ended; the JSON summary gets `start` (the kept run's:
+/// 0 for p0) and `starts` [{start, misfit, usable}].
+Calibrated calibrate_from_starts(Objective& objective, const Vector& p0, const CalibrateArgs& args,
+                                 bool chi_square = false) {
+  Calibrated best = calibrate(objective, p0, args, chi_square);
+  if (args.starts == 0) return best;
+  auto misfit = [&](const Calibrated& c) {
+    const Evaluation e = c.usable ? objective.evaluate(c.final, Need::Value) : Evaluation();
+    return e.ok ? e.value : INFINITY;
+  };
+  double lowest = misfit(best);
+  int kept = 0;
+  nlohmann::json starts = nlohmann::json::array();
+  starts.push_back({{"start", 0}, {"misfit", json_number(lowest)}, {"usable", best.usable}});
+  CalibrateArgs quiet = args;
+  quiet.quiet = true;
+  for (int k = 1; k <= args.starts; ++k) {
+    std::printf("--- further start %d of %d, spread over the parameters' bounds\n", k, args.starts);
+    Calibrated from_k = calibrate(objective, spread_start(objective.problem().parameters, k), quiet, chi_square);
+    const double value = misfit(from_k);
+    starts.push_back({{"start", k}, {"misfit", json_number(value)}, {"usable", from_k.usable}});
+    if (!(value < lowest * (1 - 1e-9))) continue;
+    best = std::move(from_k);
+    lowest = value;
+    kept = k;
+  }
+  std::printf("--- kept the calibration from %s (misfit %.6g; %d further starts)\n\n",
+              kept == 0 ? std::string("the given start").c_str() : ("further start " + std::to_string(kept)).c_str(),
+              lowest, args.starts);
+  best.report.summary["start"] = kept;
+  best.report.summary["starts"] = starts;
+  return best;
+}
+
 /// The report's files other than the VTU set: JSON, CSV tables, convergence plot.
 void write_outputs(const CalibrateArgs& args, const nlohmann::json& report, const Problem& problem) {
   write_json(args.json, report, problem);
@@ -224,7 +261,7 @@ int calibrate_with_effects(const Problem& problem, const Vector& p0, const std::
   if (noise) std::printf("fits weighted by the stated noise (chi-square)\n");
   std::printf("--- without the added effects\n");
   Objective objective(fitted, objective_options);
-  const Calibrated before = calibrate(objective, p0, args, noise);
+  const Calibrated before = calibrate_from_starts(objective, p0, args, noise);
   std::fputs(before.report.text.c_str(), stdout);
   if (!before.usable) {
     std::fprintf(stderr, "error: the calibration without the effects has no usable result\n");
@@ -314,7 +351,7 @@ int run_calibrate(const CalibrateArgs& args) {
   append_added_effects(problem, args.add, &effects);
   if (!effects.empty()) return calibrate_with_effects(problem, p0, effects, args, objective_options);
   Objective objective(problem, objective_options);
-  Calibrated result = calibrate(objective, p0, args);
+  Calibrated result = calibrate_from_starts(objective, p0, args);
   if (result.usable && args.uncertainty != "none") {
     UncertaintyOptions options;
     options.profiles = args.uncertainty == "profile";
@@ -345,46 +382,8 @@ int run_calibrate(const CalibrateArgs& args) {
 
 }  // namespace
 
-void register_calibrate_command(CLI::App& app, int* exit_code) {
-  auto args = std::make_shared<CalibrateArgs>();
-  CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the parameters against the measured modes");
-  cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--method", args->method, "fullspace (default), reduced-lbfgs, reduced-gauss-newton or reduced-newton")
-      ->check(CLI::IsMember(calibration_method_names()));
-  cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
-      ->check(CLI::IsMember({"none", "linear", "log"}));
-  cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
-  cmd->add_option("--json", args->json, "write the report as JSON to this file")->check(OutputFile());
-  cmd->add_option("--csv", args->csv,
-                  "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
-  cmd->add_option("--history-plot", args->history_plot,
-                  "plot objective and gradient norm against iteration to this .png or .svg file")
-      ->check(PlotFile());
-  cmd->add_option("--vtu", args->vtu,
-                  "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
-                  "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");
-  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
-  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(non_negative_number());
-  cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
-  cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
-  cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")
-      ->check(positive_number());
-  cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
-      ->check(non_negative_number());
-  cmd->add_option("--add", args->add,
-                  "calibrate again with this effect added and show before and after: a change without its value "
-                  "(joint2.kry, point_mass@top:mass, support@post_bottom:kx), with a start value (joint2.kry=1e5), "
-                  "or a candidate's name from diagnose (repeatable)");
-  cmd->add_option("--uncertainty", args->uncertainty,
-                  "parameter uncertainty at the result: profile (default: standard errors, 95 % intervals and "
-                  "correlations, and profile intervals where the data hardly see a parameter), laplace (without "
-                  "the profiles) or none")
-      ->check(CLI::IsMember({"profile", "laplace", "none"}))
-      ->default_str(args->uncertainty);
-  cmd->add_option("--uncertainty-plot", args->uncertainty_plot,
-                  "plot the parameters' correlation matrix to this .png or .svg file, and their profiles (where "
-                  "profiled) beside it as FILE_profiles.png")->check(OutputFile());
-  cmd->add_flag("--quiet", args->quiet, "no progress lines");
+/// The full space's tuning flags, for studies of what each safeguard buys.
+void add_fullspace_flags(CLI::App* cmd, CalibrateArgs* args) {
   cmd->add_option("--globalization", args->globalization,
                   "fullspace: reduced L-BFGS iterations before the Newton phase, at most (default 50; 0: none)")
       ->check(non_negative_number());
@@ -421,6 +420,53 @@ void register_calibrate_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--limited-memory", args->limited_memory, "fullspace: Ipopt's L-BFGS Hessian instead of the exact one");
   cmd->add_option("--ipopt-print-level", args->print_level, "fullspace: Ipopt's own output (0-12, default 0)")
       ->check(CLI::Range(0, 12));
+}
+
+void register_calibrate_command(CLI::App& app, int* exit_code) {
+  auto args = std::make_shared<CalibrateArgs>();
+  CLI::App* cmd = app.add_subcommand("calibrate", "Calibrate the parameters against the measured modes");
+  cmd->add_option("problem", args->problem, "problem file (YAML)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--method", args->method, "fullspace (default), reduced-lbfgs, reduced-gauss-newton or reduced-newton")
+      ->check(CLI::IsMember(calibration_method_names()));
+  cmd->add_option("--scaling", args->scaling, "none, linear or log for every parameter (default: the problem file's)")
+      ->check(CLI::IsMember({"none", "linear", "log"}));
+  cmd->add_flag("--no-bounds", args->no_bounds, "ignore the parameters' bounds");
+  cmd->add_option("--json", args->json, "write the report as JSON to this file")->check(OutputFile());
+  cmd->add_option("--csv", args->csv,
+                  "write the tables as CSV: PREFIX_parameters.csv, PREFIX_modes.csv and PREFIX_history.csv");
+  cmd->add_option("--history-plot", args->history_plot,
+                  "plot objective and gradient norm against iteration to this .png or .svg file")
+      ->check(PlotFile());
+  cmd->add_option("--vtu", args->vtu,
+                  "write the calibrated model for ParaView to this directory: calibrated.vtu (blocks, calibrated "
+                  "properties, mode shapes), calibrated_sensors.vtu (measured shapes) and calibrated.pvd");
+  cmd->add_option("--refine", args->refine, "mesh refinement factor")->check(positive_number());
+  cmd->add_option("--max-iterations", args->max_iterations, "iteration limit (default 100)")->check(non_negative_number());
+  cmd->add_option("--params", args->start.source, "start from: initial (default), truth, or a report JSON");
+  cmd->add_option("--set", args->start.assignments, "start value NAME=VALUE (repeatable)");
+  cmd->add_option("--starts", args->starts,
+                  "calibrate again from this many further starts spread over the parameters' bounds and keep the "
+                  "lowest misfit: the misfit has local minima (default 0)")
+      ->check(FiniteRange(0, 1000));
+  cmd->add_option("--start-factor", args->start_factor, "multiply the initial values by this factor")
+      ->check(positive_number());
+  cmd->add_option("--regularization", args->regularization, "Tikhonov weight toward the initial values (scaled variables)")
+      ->check(non_negative_number());
+  cmd->add_option("--add", args->add,
+                  "calibrate again with this effect added and show before and after: a change without its value "
+                  "(joint2.kry, point_mass@top:mass, support@post_bottom:kx), with a start value (joint2.kry=1e5), "
+                  "or a candidate's name from diagnose (repeatable)");
+  cmd->add_option("--uncertainty", args->uncertainty,
+                  "parameter uncertainty at the result: profile (default: standard errors, 95 % intervals and "
+                  "correlations, and profile intervals where the data hardly see a parameter), laplace (without "
+                  "the profiles) or none")
+      ->check(CLI::IsMember({"profile", "laplace", "none"}))
+      ->default_str(args->uncertainty);
+  cmd->add_option("--uncertainty-plot", args->uncertainty_plot,
+                  "plot the parameters' correlation matrix to this .png or .svg file, and their profiles (where "
+                  "profiled) beside it as FILE_profiles.png")->check(OutputFile());
+  cmd->add_flag("--quiet", args->quiet, "no progress lines");
+  add_fullspace_flags(cmd, args.get());
   cmd->callback([args, exit_code] { *exit_code = run_calibrate(*args); });
 }
 
