@@ -491,26 +491,30 @@ TEST(Cli, DiagnoseOfNoiseFreeDataOfTheRightModelAsksForNothing) {
   EXPECT_EQ(d["accepted"].size(), 0u);
 }
 
+/// A portal-frame problem measured by six frequencies of its right model with 0.2 % noise and
+/// no shapes, written to the test's temporary directory; returns its path.
+std::string WriteSixFrequenciesProblem() {
+  testing::WriteTempFile("frequencies_only.yaml",
+                         "noise: {frequency: 0.002, shape: 0.01, seed: 1}\n"
+                         "modes:\n"
+                         "  - {frequency_hz: 22.73250288946627, pair: {model_mode: 1}}\n"
+                         "  - {frequency_hz: 32.404108204235115, pair: {model_mode: 2}}\n"
+                         "  - {frequency_hz: 80.27471898534337, pair: {model_mode: 3}}\n"
+                         "  - {frequency_hz: 141.63470789815477, pair: {model_mode: 4}}\n"
+                         "  - {frequency_hz: 197.42548190786124, pair: {model_mode: 5}}\n"
+                         "  - {frequency_hz: 310.1125154555781, pair: {model_mode: 6}}\n");
+  return testing::WriteTempFile("frequencies_only_problem.yaml",
+                                "extends: " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
+                                    "\nmeasured: {file: frequencies_only.yaml}\n");
+}
+
 // Six frequencies of the portal frame's right model with 0.2 % noise, no shapes: from the file's
 // start the first calibration stops far from the truth (chi-square 1.7e4, conn_krx on its upper
 // bound). Whatever path a machine's calibration takes, the diagnosis must end at the right model
 // calibrated near its truth, and say so; when it had to leave a local minimum it says that too.
 TEST(Cli, DiagnoseLeavesALocalMinimumOfTheFirstCalibration) {
-  const std::string dir =
-      std::filesystem::path(testing::WriteTempFile("frequencies_only.yaml",
-                                                   "noise: {frequency: 0.002, shape: 0.01, seed: 1}\n"
-                                                   "modes:\n"
-                                                   "  - {frequency_hz: 22.73250288946627, pair: {model_mode: 1}}\n"
-                                                   "  - {frequency_hz: 32.404108204235115, pair: {model_mode: 2}}\n"
-                                                   "  - {frequency_hz: 80.27471898534337, pair: {model_mode: 3}}\n"
-                                                   "  - {frequency_hz: 141.63470789815477, pair: {model_mode: 4}}\n"
-                                                   "  - {frequency_hz: 197.42548190786124, pair: {model_mode: 5}}\n"
-                                                   "  - {frequency_hz: 310.1125154555781, pair: {model_mode: 6}}\n"))
-          .parent_path()
-          .string();
-  const std::string problem = testing::WriteTempFile(
-      "frequencies_only_problem.yaml", "extends: " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
-                                           "\nmeasured: {file: frequencies_only.yaml}\n");
+  const std::string problem = WriteSixFrequenciesProblem();
+  const std::string dir = std::filesystem::path(problem).parent_path().string();
   // Without further starts, which would leave the minimum before the loop does.
   const CliRun run =
       RunCli("diagnose " + problem + " --quiet --jobs 1 --calibration-starts 0 --json " + dir + "/local_minimum.json");
@@ -531,19 +535,8 @@ TEST(Cli, DiagnoseLeavesALocalMinimumOfTheFirstCalibration) {
 // With --starts the kept run is the lowest of all, which three of the four further starts reach
 // here; whatever path a machine takes, one of four must, and the JSON lists every start.
 TEST(Cli, CalibrateFromFurtherStartsKeepsTheLowestMisfit) {
-  const std::string data = testing::WriteTempFile("six_frequencies.yaml",
-                                                  "noise: {frequency: 0.002, shape: 0.01, seed: 1}\n"
-                                                  "modes:\n"
-                                                  "  - {frequency_hz: 22.73250288946627, pair: {model_mode: 1}}\n"
-                                                  "  - {frequency_hz: 32.404108204235115, pair: {model_mode: 2}}\n"
-                                                  "  - {frequency_hz: 80.27471898534337, pair: {model_mode: 3}}\n"
-                                                  "  - {frequency_hz: 141.63470789815477, pair: {model_mode: 4}}\n"
-                                                  "  - {frequency_hz: 197.42548190786124, pair: {model_mode: 5}}\n"
-                                                  "  - {frequency_hz: 310.1125154555781, pair: {model_mode: 6}}\n");
-  const std::string dir = std::filesystem::path(data).parent_path().string();
-  const std::string problem = testing::WriteTempFile(
-      "six_frequencies_problem.yaml", "extends: " + testing::SourcePath("problems/portal-frame/synthetic.yaml") +
-                                          "\nmeasured: {file: six_frequencies.yaml}\n");
+  const std::string problem = WriteSixFrequenciesProblem();
+  const std::string dir = std::filesystem::path(problem).parent_path().string();
   const CliRun run = RunCli("calibrate " + problem + " --starts 4 --quiet --uncertainty none --json " + dir +
                             "/starts.json");
   ASSERT_EQ(run.exit_code, 0) << run.output;
