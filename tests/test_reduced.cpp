@@ -232,7 +232,9 @@ TEST(SpreadStart, FillsTheBoxEvenlyInTheOptimizersVariables) {
   parameters[2].upper = INFINITY, parameters[2].initial = 1.25;  // no box: the initial value
   EXPECT_EQ(spread_start(parameters, 3)[2], 1.25);
   EXPECT_THROW(spread_start(parameters, 0), std::invalid_argument);
-  EXPECT_THROW(spread_start(std::vector<Parameter>(65), 1), std::invalid_argument);
+  std::vector<Parameter> many(200);  // the 200th prime is 1223: u = 3 / 1223 at k = 3
+  for (Parameter& q : many) q.lower = 0, q.upper = 1;
+  EXPECT_NEAR(spread_start(many, 3)[199], 3.0 / 1223, 1e-15);
 }
 
 TEST(Lfu, ExperimentalCaseMatchesTheAxialModesAndFlagsAPoorlyIdentifiedParameter) {

@@ -140,9 +140,11 @@ MODALCAL_EXPORT ReducedSummary minimize_reduced(Objective& objective, const Vect
 /// range), uniform in log10 of the value for a parameter with Scaling::Log and a positive lower
 /// bound, else in the value; a parameter without a finite box keeps its initial value. Point 1
 /// lies at u = 1/2, 1/3, 1/5, ...; the first points fill the box evenly in every projection, and
-/// the same on every machine (no random draws). Range: k >= 1, at most 64 parameters.
+/// the same on every machine (no random draws). Range: k >= 1. With many parameters the bases
+/// grow and the first points cover the last parameters' ranges only coarsely (k below the base
+/// puts u = k / base).
 /// Example: `spread_start(problem.parameters, 1)`.
-/// \throws std::invalid_argument for k < 1 or more than 64 parameters.
+/// \throws std::invalid_argument for k < 1.
 MODALCAL_EXPORT Vector spread_start(const std::vector<Parameter>& parameters, int k);
 
 }  // namespace modalcal
