@@ -616,17 +616,17 @@ std::string discretization_text(const Diagnosis& d) {
 /// The calibration parameters of `problem` that `p` holds on a bound of their range (within
 /// 1e-6 of the range, in the optimizer's variables), each as "name (lower|upper bound V)".
 std::vector<std::string> held_on_bounds(const Problem& problem, const Vector& p) {
+  const ParameterScaling scaling(problem.parameters);
+  const Vector x = scaling.to_scaled(p), lo = scaling.to_scaled(problem.lower_bounds()),
+               hi = scaling.to_scaled(problem.upper_bounds());
   std::vector<std::string> held;
-  for (size_t j = 0; j < problem.parameters.size(); ++j) {
-    const Parameter& q = problem.parameters[j];
-    const bool in_log = q.scaling == Scaling::Log && q.lower > 0 && p[Eigen::Index(j)] > 0;
-    auto variable = [&](double v) { return in_log ? std::log10(v) : v; };
-    const double x = variable(p[Eigen::Index(j)]), lo = variable(q.lower), hi = variable(q.upper);
-    const double near = 1e-6 * (hi - lo);
-    if (!(std::abs(x - lo) <= near || std::abs(x - hi) <= near)) continue;
-    const bool lower = std::abs(x - lo) <= near;
-    held.push_back(q.name + " (" + (lower ? "lower" : "upper") + " bound " + detail::number_text(lower ? q.lower : q.upper, 4) +
-                   ")");
+  for (Eigen::Index j = 0; j < x.size(); ++j) {
+    const double near = 1e-6 * (hi[j] - lo[j]);
+    const bool lower = std::abs(x[j] - lo[j]) <= near, upper = std::abs(x[j] - hi[j]) <= near;
+    if (!lower && !upper) continue;
+    const Parameter& q = problem.parameters[static_cast<size_t>(j)];
+    held.push_back(q.name + " (" + (lower ? "lower" : "upper") + " bound " +
+                   detail::number_text(lower ? q.lower : q.upper, 4) + ")");
   }
   return held;
 }

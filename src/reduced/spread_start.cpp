@@ -41,16 +41,19 @@ std::vector<int> first_primes(size_t count) {
 Vector spread_start(const std::vector<Parameter>& parameters, int k) {
   if (k < 1) throw std::invalid_argument("spread_start: k = " + std::to_string(k) + ": must be >= 1");
   const std::vector<int> bases = first_primes(parameters.size());
-  Vector p(static_cast<Eigen::Index>(parameters.size()));
-  for (size_t j = 0; j < parameters.size(); ++j) {
-    const Parameter& q = parameters[j];
-    const double u = radical_inverse(k, bases[j]);
-    const bool in_log = q.scaling == Scaling::Log && q.lower > 0;
-    p[static_cast<Eigen::Index>(j)] =
-        !(std::isfinite(q.lower) && std::isfinite(q.upper)) ? q.initial  // no box to spread over
-        : in_log ? std::pow(10.0, std::log10(q.lower) + u * (std::log10(q.upper) - std::log10(q.lower)))
-               : q.lower + u * (q.upper - q.lower);
+  const Eigen::Index n = static_cast<Eigen::Index>(parameters.size());
+  Vector lower(n), upper(n), initial(n);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Parameter& q = parameters[static_cast<size_t>(j)];
+    lower[j] = q.lower, upper[j] = q.upper, initial[j] = q.initial;
   }
+  const ParameterScaling scaling(parameters);  // the optimizer's variables
+  const Vector lo = scaling.to_scaled(lower), hi = scaling.to_scaled(upper);
+  Vector x(n);
+  for (Eigen::Index j = 0; j < n; ++j) x[j] = lo[j] + radical_inverse(k, bases[static_cast<size_t>(j)]) * (hi[j] - lo[j]);
+  Vector p = scaling.to_physical(x);
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (!std::isfinite(p[j])) p[j] = initial[j];  // no finite box to spread over
   return p;
 }
 
