@@ -808,23 +808,23 @@ Problem weighted_if(bool noise_known, const Problem& problem) {
 }
 
 /// The lowest of the calibrations of `weighted` from options.calibration_starts further starts
-/// (spread_start() 1, 2, ...), walked as `walk` says through the task map: its start's number when
+/// (spread_start() 1, 2, ...), walked as `walk` says through the task map and judged with
+/// `objective` (the first calibration's, on the whole model): its start's number when
 /// it ends lower than `fit` by more than the rounding of X² (summary and fit replaced, but for
 /// the summary's initial values), else 0.
-int calibrate_from_further_starts(const Problem& weighted, const DiagnosisOptions& options, RankingOptions walk,
-                                  ReducedSummary* summary, FitState* fit) {
+int calibrate_from_further_starts(Objective& objective, const Problem& weighted, const DiagnosisOptions& options,
+                                  RankingOptions walk, ReducedSummary* summary, FitState* fit) {
   walk.refit.progress = nullptr;  // the caller's display follows one calibration, and these may run at once
   const TaskMap& map = options.ranking.task_map ? options.ranking.task_map : TaskMap(run_in_turn);
   const std::vector<std::string> outcomes = map(static_cast<size_t>(options.calibration_starts), [&](size_t k) {
-    Objective objective(weighted, options.ranking.objective);
-    const ReducedSummary from_k = detail::refit_walk(objective, spread_start(weighted.parameters, int(k) + 1), walk);
+    Objective own(weighted, options.ranking.objective);  // one per start: they may run at once
+    const ReducedSummary from_k = detail::refit_walk(own, spread_start(weighted.parameters, int(k) + 1), walk);
     TaskCodec outcome;
     outcome.put(from_k.final.size() == summary->final.size() ? from_k.final : Vector());
     outcome.put(static_cast<double>(from_k.iterations));
     outcome.put(static_cast<double>(from_k.forward_solves));
     return outcome.str();
   });
-  Objective objective(weighted, options.ranking.objective);
   int kept = 0;
   for (size_t k = 0; k < outcomes.size(); ++k) {
     TaskCodec outcome(outcomes[k]);
@@ -866,7 +866,7 @@ StartKept calibrate_nominal(const Problem& weighted, const Vector& from, const D
   const bool too_far = fit->test ? fit->test->model_form_error : !at_resolution(*fit, options.ranking.resolution);
   if (!further_starts || !too_far || options.calibration_starts == 0) return {};
   const double given_end = fit->statistic;
-  const int start = calibrate_from_further_starts(weighted, options, walk, summary, fit);
+  const int start = calibrate_from_further_starts(objective, weighted, options, walk, summary, fit);
   return start == 0 ? StartKept{} : StartKept{start, given_end};
 }
 
