@@ -25,6 +25,7 @@
 /// \endcode
 
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -118,6 +119,10 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// calibrations of the data corrected for the mesh start from the kept end. Each start costs up
   /// to a calibration. Range: [0, 1000] (0: the caller's start only).
   int calibration_starts = 4;
+  /// Called with one line of text when a stage that can take long begins or ends (the further
+  /// calibration starts, each with its end), for a progress display; null: nothing is said.
+  /// Called from the caller's thread only.
+  std::function<void(const std::string&)> progress;
   /// The first calibration: reduced L-BFGS (the robust choice from a far start) with the refits'
   /// tolerances (RankingOptions::default_refit_options), but for the function tolerance, 1e-5.
   /// It walks in a span of the model, its end checked on the whole model, as the refits do

@@ -435,6 +435,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
     options.calibration.progress = [](const IterationRecord& r) {
       std::fprintf(stderr, "  calibrate %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);
     };
+    options.progress = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
     if (farm.threads() == 1)  // refits running side by side would mix their lines
       options.ranking.refit.progress = [](const IterationRecord& r) {
         std::fprintf(stderr, "  refit %3d  misfit %.6e  |pg| %.3e\n", r.iteration, r.objective, r.gradient_norm);

@@ -807,6 +807,11 @@ Problem weighted_if(bool noise_known, const Problem& problem) {
   return noise_known ? noise_weighted(problem, *problem.measurement_noise) : problem;
 }
 
+/// One line for the caller's progress display, when it has one.
+void say(const DiagnosisOptions& options, const std::string& line) {
+  if (options.progress) options.progress(line);
+}
+
 /// The lowest of the calibrations of `weighted` from options.calibration_starts further starts
 /// (spread_start() 1, 2, ...), walked as `walk` says through the task map and judged with
 /// `objective` (the first calibration's, on the whole model): its start's number when
@@ -831,8 +836,13 @@ int calibrate_from_further_starts(Objective& objective, const Problem& weighted,
     const Vector p = outcome.get_vector();
     const int iterations = static_cast<int>(outcome.get_number()), solves = static_cast<int>(outcome.get_number());
     summary->forward_solves += solves;
-    if (p.size() == 0) continue;
+    if (p.size() == 0) {
+      say(options, "  start " + std::to_string(k + 1) + ": the calibration could not start there");
+      continue;
+    }
     FitState other = fit_of(objective, weighted, p, options.test);
+    say(options, "  start " + std::to_string(k + 1) + " ends at " + chi2_text(has_noise(weighted)) + " " +
+                     format_number(other.statistic));
     if (!(other.statistic < fit->statistic * (1 - 1e-9))) continue;
     *fit = std::move(other);
     summary->final = p;
@@ -866,6 +876,10 @@ StartKept calibrate_nominal(const Problem& weighted, const Vector& from, const D
   const bool too_far = fit->test ? fit->test->model_form_error : !at_resolution(*fit, options.ranking.resolution);
   if (!further_starts || !too_far || options.calibration_starts == 0) return {};
   const double given_end = fit->statistic;
+  say(options, "calibrating again from " + std::to_string(options.calibration_starts) +
+                   " further starts spread over the bounds: the given start ended at " +
+                   chi2_text(has_noise(weighted)) + " " + format_number(given_end) +
+                   (has_noise(weighted) ? ", more than the noise" : ", more than the data's resolution"));
   const int start = calibrate_from_further_starts(objective, weighted, options, walk, summary, fit);
   return start == 0 ? StartKept{} : StartKept{start, given_end};
 }
