@@ -15,6 +15,7 @@
 #include "modalcal/uncertainty.hpp"
 #include "modalcal/problem_file.hpp"
 #include "diagnostics/same_change.hpp"
+#include "diagnostics/verdict_text.hpp"
 #include "test_util.hpp"
 
 namespace modalcal {
@@ -957,6 +958,18 @@ TEST(Diagnosis, AStepSaysWhenThePriorOverKindsChoseAgainstTheData) {
   EXPECT_EQ(text.find("hardly tell it from added_mass_node212.mass"), std::string::npos) << text;
   EXPECT_NE(text.find("hardly tell it from column_1_region_4.mass_scale"), std::string::npos) << text;
   EXPECT_NE(text.find("by more than 20 : 1\n"), std::string::npos) << text;  // same kind, one path: no reason given
+  // The recommendation names the alternative the data hardly tell from the kept effect, not the
+  // ones they favour (the step's lines say why the prior or the path chose against those).
+  d.effects = {step.effect.candidate};
+  EXPECT_EQ(detail::hardly_told_apart_text(d), " The data hardly tell column_1.mass_scale from column_1_region_4.mass_scale.");
+  Diagnosis many = d;
+  many.steps[0].alternatives = {refit("a", 2340, 3), refit("b", 2339, 3), refit("c", 2338, 3), refit("d", 2337, 3)};
+  many.steps[0].tell_apart.resize(4);
+  EXPECT_EQ(detail::hardly_told_apart_text(many),
+            " The data hardly tell column_1.mass_scale from a, b, c and 1 more. The stepwise loop lists the readings "
+            "that would tell them apart.");
+  many.steps[0].alternatives = {favoured};
+  EXPECT_EQ(detail::hardly_told_apart_text(many), "");
   d.paths.resize(2);
   d.paths[0].first = "column_1.mass_scale";
   d.paths[0].kept = true;

@@ -16,6 +16,7 @@
 #include "objective/shape_misfit.hpp"
 #include "refit_walk.hpp"
 #include "same_change.hpp"
+#include "verdict_text.hpp"
 
 namespace modalcal {
 
@@ -687,6 +688,37 @@ std::string too_few_data_text(const Diagnosis& d) {
          " parameters the calibration can meet any data. Measure more modes or shapes to test the model's form.";
 }
 
+}  // namespace
+
+namespace detail {
+
+// The recommendation is what a user acts on, and there the effect's name alone would read as
+// more certain than the data are.
+std::string hardly_told_apart_text(const Diagnosis& d) {
+  std::string text;
+  bool readings = false;
+  for (const std::string& name : d.accepted()) {
+    const DiagnosisStep& s = *step_that_added(d, name);
+    std::vector<std::string> others;
+    for (const RankedEffect& a : s.alternatives)
+      if (!s.data_favour(a)) others.push_back(a.candidate.name);
+    if (others.empty()) continue;
+    const size_t shown = std::min<size_t>(others.size(), 3);
+    std::string list;
+    for (size_t k = 0; k < shown; ++k)
+      list += (k == 0 ? "" : k + 1 == shown && others.size() == shown ? " and " : ", ") + others[k];
+    if (others.size() > shown) list += " and " + std::to_string(others.size() - shown) + " more";
+    text += " The data hardly tell " + name + " from " + list + ".";
+    readings = readings || !s.tell_apart.empty();
+  }
+  if (readings) text += " The stepwise loop lists the readings that would tell them apart.";
+  return text;
+}
+
+}  // namespace detail
+
+namespace {
+
 std::string effects_text(const Diagnosis& d, double resolution) {
   char numbers[200];
   if (d.accepted().empty()) {
@@ -733,7 +765,7 @@ std::string effects_text(const Diagnosis& d, double resolution) {
             "): what remains is not among the candidates.";
   else
     text += "With them the residual is consistent with the noise.";
-  return text + bound_limited_text(d);
+  return text + detail::hardly_told_apart_text(d) + bound_limited_text(d);
 }
 
 }  // namespace
