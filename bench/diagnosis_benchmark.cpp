@@ -316,6 +316,17 @@ MeasuredData synthesize(const ProblemContext& ctx, const TruthModel& truth, cons
   return synthesize_measured_data(ctx.problem, truth, ctx.problem.sensors, options);
 }
 
+/// The noise-weighted chi-square of `problem` calibrated (reduced L-BFGS) from `p0`; NaN when it
+/// cannot be evaluated.
+double calibrated_chi2(const Problem& problem, const Vector& p0, const MeasurementNoise& noise) {
+  const Problem weighted = noise_weighted(problem, noise);
+  Objective objective(weighted);
+  const ReducedSummary fit = minimize_reduced(objective, p0, ReducedOptions());
+  const Evaluation e = objective.evaluate(fit.final.size() == p0.size() ? fit.final : p0);
+  if (!e.ok) return NAN;
+  return test_residual(objective, e, noise, static_cast<int>(p0.size())).statistic;
+}
+
 /// The chi-square of the truth model itself (its effects at their true values), calibrated from
 /// the true parameter values against the case's data: about what the right effect's refit can
 /// reach, an oracle no diagnosis has. Below the diagnosis's final chi-square, the data favour the
@@ -324,15 +335,10 @@ MeasuredData synthesize(const ProblemContext& ctx, const TruthModel& truth, cons
 double truth_model_chi2(const Problem& problem, const TruthModel& truth, const MeasuredData& data) {
   Problem p = problem;  // the calibration parameters, the case's data
   p.model = truth.problem.model;
-  const Problem weighted = noise_weighted(p, *data.noise);
-  Objective objective(weighted);
-  Vector p0(static_cast<Eigen::Index>(weighted.parameters.size()));
-  for (size_t i = 0; i < weighted.parameters.size(); ++i)
-    p0[static_cast<Eigen::Index>(i)] = weighted.parameters[i].truth.value_or(weighted.parameters[i].initial);
-  const ReducedSummary fit = minimize_reduced(objective, p0, ReducedOptions());
-  const Evaluation e = objective.evaluate(fit.final.size() == p0.size() ? fit.final : p0);
-  if (!e.ok) return NAN;
-  return test_residual(objective, e, *data.noise, static_cast<int>(p0.size())).statistic;
+  Vector p0(static_cast<Eigen::Index>(p.parameters.size()));
+  for (size_t i = 0; i < p.parameters.size(); ++i)
+    p0[static_cast<Eigen::Index>(i)] = p.parameters[i].truth.value_or(p.parameters[i].initial);
+  return calibrated_chi2(p, p0, *data.noise);
 }
 
 /// Moves the elements of `block` whose centroid lies within `radius` of `center` into a new block
@@ -465,7 +471,7 @@ std::vector<double> noncentrality_given_others(const std::vector<Signature>& alo
 /// noncentrality of the likelihood-ratio test for that effect at a step where the others are in
 /// the model, with what the others absorb at any value, not only to first order (three masses on
 /// two columns: the largest, refitted 10 % lighter, takes in the other two). NaN for every effect
-/// when one is no candidate (a part of a block) or a calibration fails.
+/// when one is no candidate (a part of a block) or a calibration cannot be evaluated.
 std::vector<double> noncentrality_given_others_refit(const ProblemContext& ctx, const std::vector<EffectSpec>& effects,
                                                      const MeasuredData& noise_free) {
   std::vector<double> out(effects.size(), NAN);
@@ -487,14 +493,10 @@ std::vector<double> noncentrality_given_others_refit(const ProblemContext& ctx, 
       Problem p = problem_with_effects(ctx.problem, others, values);
       p.measured = noise_free.modes;
       p.synthetic.reset();
-      const Problem weighted = noise_weighted(p, ctx.noise);
-      Objective objective(weighted);
-      Vector p0(static_cast<Eigen::Index>(weighted.parameters.size()));
+      Vector p0(static_cast<Eigen::Index>(p.parameters.size()));
       p0 << ctx.truth, Eigen::Map<const Vector>(values.data(), static_cast<Eigen::Index>(values.size()));
-      const ReducedSummary fit = minimize_reduced(objective, p0, ReducedOptions());
-      const Evaluation e = objective.evaluate(fit.final.size() == p0.size() ? fit.final : p0);
-      if (!e.ok) return std::vector<double>(effects.size(), NAN);
-      out[k] = test_residual(objective, e, ctx.noise, static_cast<int>(p0.size())).statistic;
+      out[k] = calibrated_chi2(p, p0, ctx.noise);
+      if (!std::isfinite(out[k])) return std::vector<double>(effects.size(), NAN);
     }
   } catch (const std::invalid_argument&) {  // a part of a block: no candidate
     return std::vector<double>(effects.size(), NAN);
