@@ -482,6 +482,45 @@ blocks:
   EXPECT_EQ(load_problem(path, LoadOptions{3.0}).model.num_elements(), 6 * 6 * 6);
 }
 
+TEST(BoxMesh, PlanesKeepANodeSetsFootprintAtEveryRefinement) {
+  // A pad from x 0.3 to 0.7 on top of a bar meshed at 0.25: without planes the nodes inside its
+  // box are whichever grid lines fall there (only x = 0.5 at refinement 1), so what the pad holds
+  // changes with the mesh. With them its footprint is the same on every mesh.
+  const std::string bar = R"(
+mesh:
+  element_size: 0.25
+  boxes:
+    - {block: a, min: [0, 0, 0], max: [1, 0.2, 0.2]}
+PLANES
+blocks:
+  a: {E: 1, nu: 0.3, density: 1}
+node_sets:
+  pad: {box: {min: [0.3, 0, 0.2], max: [0.7, 0.2, 0.2]}}
+)";
+  auto extent = [](const Problem& p) {
+    const auto set = std::find_if(p.model.node_sets.begin(), p.model.node_sets.end(),
+                                  [](const NodeSet& s) { return s.name == "pad"; });
+    double lo = INFINITY, hi = -INFINITY;
+    for (int n : set->nodes) {
+      lo = std::min(lo, p.model.coordinates[n][0]);
+      hi = std::max(hi, p.model.coordinates[n][0]);
+    }
+    return std::make_pair(lo, hi);
+  };
+  std::string with = bar;
+  with.replace(with.find("PLANES"), 6, "  planes: {x: [0.3, 0.7]}");
+  const std::string path = WriteProblem(with);
+  for (double refinement : {1.0, 1.5, 2.0, 3.0}) {
+    const auto [lo, hi] = extent(load_problem(path, LoadOptions{refinement}));
+    EXPECT_NEAR(lo, 0.3, 1e-12) << refinement;
+    EXPECT_NEAR(hi, 0.7, 1e-12) << refinement;
+  }
+  std::string without = bar;
+  without.replace(without.find("PLANES"), 6, "");
+  const auto [lo, hi] = extent(load_problem(WriteProblem(without)));
+  EXPECT_EQ(lo, hi);  // one grid line, x = 0.5, inside the pad's box
+}
+
 // ---------------------------------------------------------------------------- errors
 
 TEST(ProblemErrors, FileNotFoundNamesThePath) {
@@ -610,6 +649,20 @@ blocks:
   alu: {E: 1, nu: 0.3, density: 1}   # <-
 )",
                      {"block 'alu'", "no mesh box uses"});
+}
+
+TEST(ProblemErrors, MeshPlaneOutsideTheBoxes) {
+  ExpectProblemError(R"(
+mesh:
+  element_size: 0.5
+  boxes:
+    - {block: steel, min: [0, 0, 0], max: [1, 1, 1]}
+  planes:
+    x: [0.5, 1.5]   # <-
+blocks:
+  steel: {E: 1, nu: 0.3, density: 1}
+)",
+                     {"plane x = 1.5", "outside the boxes' extent (0 to 1 along x)"});
 }
 
 TEST(ProblemErrors, UnknownNodeSetSaysNoneAreDefined) {

@@ -35,9 +35,9 @@ struct Axis {
   }
 };
 
-/// The distinct box faces along one axis, ascending.
-std::vector<double> face_planes(const std::vector<MeshBox>& boxes, int axis) {
-  std::vector<double> faces;
+/// The distinct box faces and `extra` planes along one axis, ascending.
+std::vector<double> face_planes(const std::vector<MeshBox>& boxes, int axis, const std::vector<double>& extra) {
+  std::vector<double> faces = extra;
   for (const MeshBox& b : boxes) {
     faces.push_back(b.min[axis]);
     faces.push_back(b.max[axis]);
@@ -59,9 +59,9 @@ double divisions(double length, double element_size, double refinement) {
 }
 
 Axis make_axis(const std::vector<MeshBox>& boxes, int axis, double element_size,
-               double refinement) {
+               double refinement, const std::vector<double>& extra) {
   Axis a;
-  a.planes = face_planes(boxes, axis);
+  a.planes = face_planes(boxes, axis, extra);
   for (size_t k = 0; k + 1 < a.planes.size(); ++k) {
     const double length = a.planes[k + 1] - a.planes[k];
     const int parts = static_cast<int>(divisions(length, element_size, refinement));
@@ -87,12 +87,12 @@ bool boxes_overlap(const MeshBox& a, const MeshBox& b) {
 }
 
 BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type, double element_size,
-                              double refinement) {
+                              double refinement, const ExtraPlanes& extra) {
   BoxMeshSize size;
   size.grid_points = 1;
   std::array<std::vector<double>, 3> planes;
   for (int axis = 0; axis < 3; ++axis) {
-    planes[axis] = face_planes(boxes, axis);
+    planes[axis] = face_planes(boxes, axis, extra[axis]);
     double lines = 1;
     for (size_t k = 0; k + 1 < planes[axis].size(); ++k)
       lines += divisions(planes[axis][k + 1] - planes[axis][k], element_size, refinement);
@@ -117,10 +117,10 @@ BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type,
 }
 
 BoxMesh generate_box_mesh(const std::vector<MeshBox>& boxes, int num_blocks, SolidType type,
-                          double element_size, double refinement) {
+                          double element_size, double refinement, const ExtraPlanes& extra) {
   std::array<Axis, 3> axes;
   for (int axis = 0; axis < 3; ++axis)
-    axes[axis] = make_axis(boxes, axis, element_size, refinement);
+    axes[axis] = make_axis(boxes, axis, element_size, refinement, extra[axis]);
   std::vector<CellRange> ranges;
   for (const MeshBox& b : boxes) {
     CellRange r;

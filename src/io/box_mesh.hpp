@@ -1,5 +1,6 @@
 #pragma once
 // Internal: the structured multi-box mesh generator behind a problem file's `mesh:` section.
+#include <array>
 #include <vector>
 
 #include "modalcal/elements.hpp"
@@ -27,11 +28,15 @@ struct BoxMeshSize {
   double nodes = 0;        ///< about (box by box: shared faces count twice), mid-edge nodes included
   double grid_points = 0;  ///< of the common grid the generator indexes (boxes and the gaps between)
 };
+/// Grid planes along x, y and z beside the boxes' faces (each strictly inside the boxes' extent).
+using ExtraPlanes = std::array<std::vector<double>, 3>;
+
 BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type, double element_size,
-                              double refinement);
+                              double refinement, const ExtraPlanes& extra = {});
 
 /// Meshes non-overlapping boxes on one common grid. Along each axis the grid planes are all
-/// boxes' min and max coordinates, and each interval between planes is divided into
+/// boxes' min and max coordinates and the `extra` ones (so that what lies between two planes, a
+/// node set's footprint, keeps its extent at every refinement), and each interval between planes is divided into
 /// max(1, ceil(refinement * length / element_size)) equal parts, so adjacent boxes share their
 /// interface nodes. Nodes exist only where a box uses them, numbered in grid order (x fastest,
 /// then y, then z); tet10 mid-edge nodes follow in order of first use. Cells are visited box
@@ -39,6 +44,6 @@ BoxMeshSize estimate_box_mesh(const std::vector<MeshBox>& boxes, SolidType type,
 /// splitting each hex into 6 along its diagonal from local node 0 to node 6, which conforms
 /// between neighbouring hexes because all of them are axis-aligned and oriented alike.
 BoxMesh generate_box_mesh(const std::vector<MeshBox>& boxes, int num_blocks, SolidType type,
-                          double element_size, double refinement);
+                          double element_size, double refinement, const ExtraPlanes& extra = {});
 
 }  // namespace modalcal::detail

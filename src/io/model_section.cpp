@@ -56,7 +56,8 @@ void Loader::read_blocks(const Field& f) {
 }
 
 void Loader::read_mesh(const Field& f) {
-  const Fields fs = map_of(f, "mesh", {"element", "element_size", "refinement", "boxes", "file", "format", "scale"});
+  const Fields fs =
+      map_of(f, "mesh", {"element", "element_size", "refinement", "boxes", "planes", "file", "format", "scale"});
   if (fs.find("file")) {
     read_mesh_file(fs);
   } else {
@@ -65,6 +66,31 @@ void Loader::read_mesh(const Field& f) {
     read_box_mesh(fs);
   }
   finish_mesh();
+}
+
+// `planes: {x: [..], y: [..], z: [..]}`: grid planes beside the boxes' faces, each strictly inside
+// the boxes' extent, so that a footprint between two of them (a payload's feet, a pad) keeps its
+// extent at every refinement instead of taking in whichever grid lines fall inside it.
+detail::ExtraPlanes Loader::mesh_planes(const Field& f, const std::vector<detail::MeshBox>& boxes) const {
+  const Fields fs = map_of(f, "mesh planes", {"x", "y", "z"});
+  detail::ExtraPlanes planes;
+  for (int axis = 0; axis < 3; ++axis) {
+    const Field* along = fs.find(kDirections[axis]);
+    if (!along) continue;
+    double lo = boxes.front().min[axis], hi = boxes.front().max[axis];
+    for (const detail::MeshBox& b : boxes) {
+      lo = std::min(lo, b.min[axis]);
+      hi = std::max(hi, b.max[axis]);
+    }
+    for (const Field& item : list(*along)) {
+      const double v = number(item);
+      if (!(lo < v && v < hi))
+        fail(item, "plane " + kDirections[axis] + " = " + format(v) + " lies outside the boxes' extent (" +
+                       format(lo) + " to " + format(hi) + " along " + kDirections[axis] + "); a plane must cut the mesh");
+      planes[axis].push_back(v);
+    }
+  }
+  return planes;
 }
 
 void Loader::read_box_mesh(const Fields& fs) {
@@ -103,13 +129,14 @@ void Loader::read_box_mesh(const Fields& fs) {
     box_lines.push_back(item.line);
   }
   if (boxes.empty()) fail(boxes_field, "'boxes' is empty; the mesh needs at least one box");
+  const detail::ExtraPlanes planes = fs.find("planes") ? mesh_planes(*fs.find("planes"), boxes) : detail::ExtraPlanes{};
 
-  const detail::BoxMeshSize size = detail::estimate_box_mesh(boxes, type, element_size, refinement);
+  const detail::BoxMeshSize size = detail::estimate_box_mesh(boxes, type, element_size, refinement, planes);
   check_mesh_size(size.nodes, 4 * size.grid_points, file_refinement ? *file_refinement : required(fs, "element_size"),
                   options_.refinement > 0 ? "use a smaller refinement (--refine " + format(refinement) + ")"
                                           : "use a larger element_size or a smaller refinement");
   const detail::BoxMesh mesh = detail::generate_box_mesh(
-      boxes, static_cast<int>(model_.blocks.size()), type, element_size, refinement);
+      boxes, static_cast<int>(model_.blocks.size()), type, element_size, refinement, planes);
   for (size_t i = 0; i < mesh.coordinates.size(); ++i) add_mesh_node(static_cast<long>(i) + 1, mesh.coordinates[i]);
   for (size_t k = 0; k < model_.blocks.size(); ++k) {
     ElementBlock& block = model_.blocks[k];
@@ -126,7 +153,7 @@ void Loader::read_box_mesh(const Fields& fs) {
 // A mesh made by another program: its blocks get the materials of the problem's blocks of the
 // same name, its node sets join the problem's.
 void Loader::read_mesh_file(const Fields& fs) {
-  for (const char* key : {"element", "element_size", "refinement", "boxes"})
+  for (const char* key : {"element", "element_size", "refinement", "boxes", "planes"})
     if (const Field* k = fs.find(key))
       fail(*k, quote(key) + " applies only to a generated mesh ('boxes'); a mesh read from a 'file' is used as it is");
   const Field& file = required(fs, "file");

@@ -15,6 +15,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "io/box_mesh.hpp"
 #include "io/measured_test_data.hpp"
 #include "modalcal/model.hpp"
 #include "modalcal/problem.hpp"
@@ -130,6 +131,7 @@ class Loader {
   void read_blocks(const Field& f);
   void read_mesh(const Field& f);
   void read_box_mesh(const Fields& fs);
+  detail::ExtraPlanes mesh_planes(const Field& f, const std::vector<detail::MeshBox>& boxes) const;
   void read_mesh_file(const Fields& fs);
   void check_model();
   void check_free_dofs();
