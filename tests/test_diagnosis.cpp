@@ -1340,6 +1340,38 @@ TEST(Diagnosis, AFinerMeshTruthIsToldApartFromMissingPhysics) {
   EXPECT_NE(d.recommendation.find("Refine the mesh first"), std::string::npos) << d.recommendation;
 }
 
+TEST(Diagnosis, TheMeshCheckLeavesOutTheShapeAtASensorTheFinerMeshReadsElsewhere) {
+  // z = 1 is a grid line of the base at element size 0.5 but not at 0.5 / 1.5, where the lines
+  // above the pad's top (z 0.5) lie a third apart: the finer mesh's nearest node lies 1/6 away, and
+  // what its modes read there is a change of place, not of mesh.
+  std::string text = kAssembly;
+  const std::string last = "  - {at: [2, 0, 1.5], directions: [x, y, z]}\n";
+  text.replace(text.find(last), last.size(), last + "  - {at: [2, 1, 1.0], tolerance: 0.2, directions: [y]}\n");
+  const std::string path = WriteTempFile("moved_sensor.yaml", text);
+  const Problem problem = LoadProblem(path);
+  Problem finer = LoadProblem(path, LoadOptions{1.5});
+  finer.measured = problem.measured;
+  finer.synthetic.reset();
+  DiagnosisOptions options;
+  options.finer_mesh = &finer;
+  const Diagnosis d = diagnose(problem, problem.initial_values(), options);
+  const std::string report = format_diagnosis(problem, d);
+  ASSERT_TRUE(d.discretization) << report;
+  EXPECT_EQ(d.discretization->sensors_moved, 1) << report;
+  EXPECT_NEAR(d.discretization->sensor_offset, 1.0 / 6, 1e-9) << report;
+  const Eigen::Index moved = static_cast<Eigen::Index>(problem.sensors.size()) - 1;
+  double elsewhere = 0;
+  for (const DiscretizationEstimate::Mode& m : d.discretization->per_mode) {
+    ASSERT_EQ(m.shape_change.size(), moved + 1) << m.label;
+    EXPECT_EQ(m.shape_change[moved], 0.0) << m.label;
+    elsewhere = std::max(elsewhere, m.shape_change.head(moved).cwiseAbs().maxCoeff());
+  }
+  EXPECT_GT(elsewhere, 0) << "the sensors held in place keep their shape change";
+  EXPECT_NE(report.find("sensor readings the finer mesh takes elsewhere: 1, at its nearest nodes up to 0.167 away,"),
+            std::string::npos)
+      << report;
+}
+
 TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) {
   // Data from the model's own mesh with the pad half as stiff: the finer mesh moves the modes
   // much as the softer pad does, so the data corrected for the mesh fit significantly better. On

@@ -232,6 +232,12 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   };
   double refinement = 0;  ///< r, the element-size ratio of the two meshes
   int dofs = 0, finer_dofs = 0;
+  /// Sensors the finer mesh reads at another place than this mesh's node (snapped to its nearest
+  /// node there), and the farthest one's distance: their shape change is left out (Mode::
+  /// shape_change is 0 there), since it is a change of place, not the mesh's error. Mesh planes
+  /// through the sensors (docs/problem-format.md) keep every mesh's node on them.
+  int sensors_moved = 0;
+  double sensor_offset = 0;
   std::vector<Mode> per_mode;
   /// X^2 at the calibration minus X^2 of the recalibration on the moved data. Negative when the
   /// finer mesh moves the model away from the data (the misfit is not the mesh's).

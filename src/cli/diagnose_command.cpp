@@ -227,6 +227,7 @@ nlohmann::json discretization_json(const Diagnosis& d) {
     modes.push_back({{"label", m.label}, {"measured", m.measured + 1}, {"shift_percent", m.shift_percent}});
   return {{"refinement", est.refinement},         {"dofs", est.dofs},
           {"finer_dofs", est.finer_dofs},         {"per_mode", modes},
+          {"sensors_moved", est.sensors_moved},   {"sensor_offset", est.sensor_offset},
           {"chi2_explained", est.chi2_explained}, {"critical_value", est.critical_value},
           {"significant", est.significant},       {"corrected", est.corrected},
           {"score_corrected", json_number(est.score_corrected)},
