@@ -877,8 +877,11 @@ void say(const DiagnosisOptions& options, const std::string& line) {
 /// The lowest of the calibrations of `weighted` from options.calibration_starts further starts
 /// (spread_start() 1, 2, ...), walked as `walk` says through the task map and judged with
 /// `objective` (the first calibration's, on the whole model): its start's number when
-/// it ends lower than `fit` by more than the rounding of X² (summary and fit replaced, but for
-/// the summary's initial values), else 0.
+/// it ends lower than `fit` by more than what tells two minima apart (summary and fit replaced,
+/// but for the summary's initial values), else 0: 0.1 in X² with a stated noise, a likelihood
+/// ratio of 1.05 and far below any test's critical value, so that two runs ending in the same
+/// minimum at a calibration's tolerance apart do not make the first "a local minimum"; without
+/// one, the rounding of 2J.
 int calibrate_from_further_starts(Objective& objective, const Problem& weighted, const DiagnosisOptions& options,
                                   RankingOptions walk, ReducedSummary* summary, FitState* fit) {
   walk.refit.progress = nullptr;  // the caller's display follows one calibration, and these may run at once
@@ -905,7 +908,8 @@ int calibrate_from_further_starts(Objective& objective, const Problem& weighted,
     FitState other = fit_of(objective, weighted, p, options.test);
     say(options, "  start " + std::to_string(k + 1) + " ends at " + chi2_text(has_noise(weighted)) + " " +
                      format_number(other.statistic));
-    if (!(other.statistic < fit->statistic * (1 - 1e-9))) continue;
+    const double apart = has_noise(weighted) ? 0.1 : 1e-9 * fit->statistic;
+    if (!(other.statistic < fit->statistic - apart)) continue;
     *fit = std::move(other);
     summary->final = p;
     summary->iterations = iterations;
