@@ -779,12 +779,7 @@ double extrapolation_factor(double r) { return r * r / (r * r - 1); }
 /// others are counted in `est`, with the farthest one's distance. A sensor snapped to another
 /// place on the finer mesh reads another point, and that change of shape is not the mesh's error.
 Vector sensors_held(const Problem& problem, const Problem& finer, DiscretizationEstimate* est) {
-  Vec3 low = problem.model.coordinates.front(), high = low;
-  for (const Vec3& x : problem.model.coordinates) {
-    low = low.cwiseMin(x);
-    high = high.cwiseMax(x);
-  }
-  const double tolerance = 1e-6 * (high - low).norm();
+  const double tolerance = 1e-6 * bounding_box_diagonal(problem.model);
   Vector held = Vector::Zero(static_cast<Eigen::Index>(problem.sensors.size()));
   for (size_t s = 0; s < problem.sensors.size() && s < finer.sensors.size(); ++s) {
     const double moved = (finer.model.coordinates[finer.sensors[s].node] -
