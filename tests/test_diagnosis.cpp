@@ -1124,6 +1124,8 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
     EXPECT_EQ(std::count(accepted.begin(), accepted.end(), x.replaces), 0) << x.replaces;
     EXPECT_GE(x.step, 1);
     EXPECT_LE(x.step, static_cast<int>(d.steps.size()));
+    EXPECT_GE(x.after_step, x.step);
+    EXPECT_LE(x.after_step, static_cast<int>(d.steps.size()));
   }
   double total_mass = 0;
   for (const Vec3& truth : {Vec3(1, 0, 0), Vec3(1, 1, 1.5)}) {
@@ -1141,6 +1143,43 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
   EXPECT_NE(report.find("exchange  "), std::string::npos) << report;
+}
+
+TEST(Diagnosis, TheStepwiseTextPutsAStepAfterTheExchangeThatPrecededIt) {
+  // Two forward steps, an exchange of the first effect, then a third step on the model the
+  // exchange left: the text tells them in that order, the exchange before step 3.
+  auto step = [](int number, const std::string& name, double before, double after) {
+    DiagnosisStep s;
+    s.step = number;
+    s.chi2_before = before;
+    s.critical_value = 21;
+    s.screened = 100;
+    s.effect.candidate.name = name;
+    s.effect.value = 1;
+    s.effect.chi2_after = after;
+    s.effect.statistic = before - after;
+    return s;
+  };
+  Diagnosis d;
+  d.steps = {step(1, "region.stiffness_scale", 7314, 641), step(2, "conn_2.krz", 641, 470),
+             step(3, "spring_a.kx", 421, 377)};
+  DiagnosisStep exchange = step(1, "column_2.stiffness_scale", 480, 421);
+  exchange.replaces = "region.stiffness_scale";
+  exchange.replaced_score = 700;
+  exchange.after_step = 2;
+  d.exchanges = {exchange};
+  const std::string text = format_steps(Problem{}, d);
+  const size_t second = text.find("step 2"), swap = text.find("exchange  region.stiffness_scale"),
+               third = text.find("step 3");
+  ASSERT_NE(second, std::string::npos) << text;
+  ASSERT_NE(swap, std::string::npos) << text;
+  ASSERT_NE(third, std::string::npos) << text;
+  EXPECT_LT(second, swap) << text;
+  EXPECT_LT(swap, third) << text;
+  // An exchange after the last step comes after it.
+  d.exchanges.front().after_step = 3;
+  const std::string after_all = format_steps(Problem{}, d);
+  EXPECT_LT(after_all.find("step 3"), after_all.find("exchange  ")) << after_all;
 }
 
 TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLowest) {

@@ -208,6 +208,9 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// The replaced effect had gone to a bound of its range (EffectCandidate::on_bound): any
   /// acceptable effect replaces it, whatever the scores.
   bool replaced_on_bound = false;
+  /// For an exchange: how many forward steps the loop had taken when it was made. A forward step
+  /// may follow an exchange that changed the model (its number is then larger than this).
+  int after_step = 0;
 };
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated

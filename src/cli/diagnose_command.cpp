@@ -246,6 +246,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
     e["replaces"] = x.replaces;
     e["replaced_score"] = json_number(x.replaced_score);
     e["replaced_on_bound"] = x.replaced_on_bound;
+    e["after_step"] = x.after_step;
     json["exchanges"].push_back(e);
   }
   json["accepted"] = d.accepted();

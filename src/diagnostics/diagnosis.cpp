@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <deque>
 #include <future>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <system_error>
@@ -557,6 +558,7 @@ StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const Diagn
     exchange.replaces = state->effects[k].name;
     exchange.replaced_score = incumbent_score;
     exchange.replaced_on_bound = on_bound;
+    exchange.after_step = static_cast<int>(d->steps.size());
     // best->parameters are without's, then the new effect's value: it takes effect k's place.
     std::vector<EffectCandidate> effects = state->effects;
     effects[k] = best->candidate;
@@ -998,6 +1000,31 @@ bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps) {
   return here == sorted_names(there) && same_fit(earlier.steps[steps - 1].effect.chi2_after);
 }
 
+/// The exchange pass, and while it changes the model, forward steps on the model it leaves and
+/// the exchange pass again (at most kExchangeRounds times). An exchange that trades a stand-in
+/// (a block's scale for the region that carried two effects' change) changes what the residual
+/// still holds, so a step screened before it may have missed what the trade uncovers. Returns
+/// the exchange pass's states without each effect when the model is still the one it left.
+StatesWithout exchange_and_step_again(const Problem& fitted, LoopState* state, const DiagnosisOptions& options,
+                                      ScreenMemo* memo, Diagnosis* d) {
+  constexpr int kExchangeRounds = 3;
+  StatesWithout made;
+  if (!options.exchange) return made;
+  for (int round = 0; round < kExchangeRounds; ++round) {
+    const size_t exchanged = d->exchanges.size();
+    made = exchange_pass(fitted, state, options, memo, d);
+    if (d->exchanges.size() == exchanged || round + 1 == kExchangeRounds) break;
+    bool stepped = false;
+    while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps &&
+           !at_resolution(state->fit, options.ranking.resolution) &&
+           forward_step(fitted, state, options, true, memo, d))
+      stepped = true;
+    if (!stepped) break;
+    made = StatesWithout();
+  }
+  return made;
+}
+
 /// What a path's walk ended at, when given a path walked before (walk()).
 enum class WalkEnd {
   kEnd,          ///< walked to the end: forward steps, exchange and backward pass
@@ -1030,8 +1057,7 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
-  StatesWithout made;
-  if (options.exchange) made = exchange_pass(fitted, &state, options, memo, d);
+  StatesWithout made = exchange_and_step_again(fitted, &state, options, memo, d);
   if (options.backward) backward_pass(fitted, &state, options, std::move(made), d);
   end_at(state, d);
   return WalkEnd::kEnd;
@@ -1507,49 +1533,69 @@ std::string alternative_text(const DiagnosisStep& s, const RankedEffect& a, bool
   return line;
 }
 
+/// The line of a fit in the stepwise text: its statistic, and with a stated noise the test.
+std::string fit_line_text(const FitState& fit) {
+  char b[160];
+  if (fit.test)
+    std::snprintf(b, sizeof b, "%.4g on %d dof, p = %.3g%s", fit.statistic, fit.test->dof, fit.test->p_value,
+                  fit.test->model_form_error ? " (more than the noise)" : " (consistent with the noise)");
+  else
+    std::snprintf(b, sizeof b, "%.4g", fit.statistic);
+  return b;
+}
+
+/// A forward step's lines in the stepwise text: the effect, its place and test, its alternatives.
+std::string forward_step_text(const Problem& problem, const Diagnosis& d, const DiagnosisStep& s) {
+  std::string where = "block-wide";
+  if (s.location) {
+    char b[96];
+    std::snprintf(b, sizeof b, "at [%.4g, %.4g, %.4g]", (*s.location)[0], (*s.location)[1], (*s.location)[2]);
+    where = b;
+  }
+  char line[400];
+  std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (%s %.4g > %.4g, %d screened)\n",
+                s.step, s.effect.candidate.name.c_str(), s.effect.value,
+                std::isfinite(s.effect.standard_error) ? (" +/- " + format_number(s.effect.standard_error)).c_str() : "",
+                where.c_str(), s.chi2_before, s.effect.chi2_after, d.noise_known ? "dX2" : "F", s.effect.statistic,
+                s.critical_value, s.screened);
+  std::string text = line;
+  for (size_t k = 0; k < s.alternatives.size(); ++k) {
+    text += alternative_text(s, s.alternatives[k], s.step == 1 && d.paths.size() > 1);
+    if (k < s.tell_apart.size()) text += tell_apart_text(problem, s.tell_apart[k]);
+  }
+  return text;
+}
+
+/// An exchange's line in the stepwise text.
+std::string exchange_text(const DiagnosisStep& x) {
+  char line[400];
+  if (x.replaced_on_bound)
+    std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, the first ends on a bound\n",
+                  x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value);
+  else
+    std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
+                  x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
+                  x.replaced_score);
+  return line;
+}
+
 }  // namespace
 
 std::string format_steps(const Problem& problem, const Diagnosis& d) {
   std::string text = "the stepwise loop (" + chi2_text(d.noise_known) + " after each accepted effect):\n";
-  char line[400];
-  auto fit_text = [&](const FitState& fit) {
-    char b[160];
-    if (fit.test)
-      std::snprintf(b, sizeof b, "%.4g on %d dof, p = %.3g%s", fit.statistic, fit.test->dof, fit.test->p_value,
-                    fit.test->model_form_error ? " (more than the noise)" : " (consistent with the noise)");
-    else
-      std::snprintf(b, sizeof b, "%.4g", fit.statistic);
-    return std::string(b);
+  text += "  start     " + fit_line_text(d.before) + "\n";
+  // In the order the loop made them: an exchange that changed the model can be followed by steps.
+  size_t next_exchange = 0;
+  auto exchanges_after = [&](int steps) {
+    for (; next_exchange < d.exchanges.size() && d.exchanges[next_exchange].after_step <= steps; ++next_exchange)
+      text += exchange_text(d.exchanges[next_exchange]);
   };
-  text += "  start     " + fit_text(d.before) + "\n";
   for (const DiagnosisStep& s : d.steps) {
-    std::string where = "block-wide";
-    if (s.location) {
-      char b[96];
-      std::snprintf(b, sizeof b, "at [%.4g, %.4g, %.4g]", (*s.location)[0], (*s.location)[1], (*s.location)[2]);
-      where = b;
-    }
-    std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (%s %.4g > %.4g, %d screened)\n",
-                  s.step, s.effect.candidate.name.c_str(), s.effect.value,
-                  std::isfinite(s.effect.standard_error) ? (" +/- " + format_number(s.effect.standard_error)).c_str() : "",
-                  where.c_str(), s.chi2_before, s.effect.chi2_after, d.noise_known ? "dX2" : "F", s.effect.statistic,
-                  s.critical_value, s.screened);
-    text += line;
-    for (size_t k = 0; k < s.alternatives.size(); ++k) {
-      text += alternative_text(s, s.alternatives[k], s.step == 1 && d.paths.size() > 1);
-      if (k < s.tell_apart.size()) text += tell_apart_text(problem, s.tell_apart[k]);
-    }
+    exchanges_after(s.step - 1);
+    text += forward_step_text(problem, d, s);
   }
-  for (const DiagnosisStep& x : d.exchanges) {
-    if (x.replaced_on_bound)
-      std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, the first ends on a bound\n",
-                    x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value);
-    else
-      std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
-                    x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
-                    x.replaced_score);
-    text += line;
-  }
+  exchanges_after(std::numeric_limits<int>::max());
+  char line[400];
   for (const DroppedEffect& x : d.dropped) {
     if (x.on_bound)
       std::snprintf(line, sizeof line, "  backward  - %s: refitted with the later effects it ends on a bound (%.4g)\n",
@@ -1560,7 +1606,7 @@ std::string format_steps(const Problem& problem, const Diagnosis& d) {
     text += line;
   }
   if (d.steps.empty()) text += "  no effect accepted\n";
-  else text += "  end       " + fit_text(d.final_fit) + "\n";
+  else text += "  end       " + fit_line_text(d.final_fit) + "\n";
   return text + paths_text(d);
 }
 
