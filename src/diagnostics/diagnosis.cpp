@@ -1017,6 +1017,7 @@ StatesWithout exchange_and_step_again(const Problem& fitted, LoopState* state, c
     bool stepped = false;
     while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps &&
            !at_resolution(state->fit, options.ranking.resolution) &&
+           !(options.stop_when_consistent && consistent_with_noise(state->fit)) &&
            forward_step(fitted, state, options, true, memo, d))
       stepped = true;
     if (!stepped) break;
