@@ -947,6 +947,18 @@ double value_error(const EffectSpec& t, const EffectCandidate& a, double value) 
   return value / t.value - 1;
 }
 
+/// With DIAGNOSIS_BENCHMARK_TRACE: the 25 best candidates of each later screen of the kept path
+/// (after each step, and where the steps stopped), to see what a later step had to choose from.
+void trace_later_screens(const Diagnosis& d) {
+  for (size_t k = 1; k < d.rankings.size(); ++k)
+    for (size_t r = 0; r < d.rankings[k].effects.size() && r < 25; ++r) {
+      const RankedEffect& x = d.rankings[k].effects[r];
+      std::fprintf(stderr, "  screen %zu (chi-square %.4g) top %3zu %-48s predicted %8.2f achieved %8.2f penalty %5.2f\n",
+                   k + 1, d.rankings[k].chi2_before, r + 1, x.candidate.name.c_str(), x.predicted_reduction,
+                   x.achieved_reduction, x.kind_penalty);
+    }
+}
+
 /// With DIAGNOSIS_BENCHMARK_TRACE: every candidate of the first step's ranking that would count as
 /// the truth's kind and place (at its refit or predicted value), with its rank, prediction, refit
 /// and kind penalty: where the right answer stood when the loop chose another.
@@ -1047,7 +1059,8 @@ void usage() {
       "  --refit-function-tolerance: RankingOptions::refit.function_tolerance; --refit-span-share:\n"
       "  RankingOptions::refit_span_share (0: every refit on the whole model);\n"
       "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
-      "  step's 40 best candidates and the 8 best of those that would count as right;\n"
+      "  step's 40 best candidates and the 8 best of those that would count as right, and each later\n"
+      "  screen's 25 best;\n"
       "  --jobs: refits at a time, each in a thread, and above 1 the paths that do not depend on one\n"
       "  another side by side (--walks-in-turn: not), as diagnose (default 1: the cpu s column is then\n"
       "  one core's);\n"
@@ -1358,7 +1371,10 @@ int main(int argc, char** argv) {
             if (!matched) ++o.spurious;
           }
           o.all_found = !c.effects.empty() && std::all_of(found.begin(), found.end(), [](bool b) { return b; });
-          if (std::getenv("DIAGNOSIS_BENCHMARK_TRACE")) trace_right_candidates(ctx, c, d);
+          if (std::getenv("DIAGNOSIS_BENCHMARK_TRACE")) {
+            trace_right_candidates(ctx, c, d);
+            trace_later_screens(d);
+          }
           if (!d.steps.empty()) {
             std::vector<const RankedEffect*> named = {&d.steps[0].effect};
             for (const RankedEffect& alt : d.steps[0].alternatives) named.push_back(&alt);
