@@ -1023,6 +1023,7 @@ struct Args {
   int neighbour_refits = RankingOptions().neighbour_refits;
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
+  int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   int region_levels = CandidateOptions().region_levels;
   double region_elements = CandidateOptions().region_elements;
@@ -1043,14 +1044,16 @@ void usage() {
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
-      "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--calibration-starts N]\n"
+      "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
+      "                    [--calibration-starts N]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
       "                    [--refit-span-share X]\n"
       "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
       "  RankingOptions::refits, place_refits, kind_refits, neighbour_refits, neighbour_rounds and\n"
-      "  equal_kind_prior; --first-step-alternatives, --calibration-starts:\n"
-      "  DiagnosisOptions::first_step_alternatives and calibration_starts (defaults: diagnose's);\n"
+      "  equal_kind_prior; --first-step-alternatives, --pair-exchanges, --calibration-starts:\n"
+      "  DiagnosisOptions::first_step_alternatives, pair_exchanges and calibration_starts (defaults:\n"
+      "  diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --region-levels: CandidateOptions::region_levels, the grids of block regions screened (the\n"
       "  cases are drawn from the finest grid's whatever it is); --region-size:\n"
@@ -1138,6 +1141,7 @@ int main(int argc, char** argv) {
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
       else if (a == "--neighbour-rounds") args.neighbour_rounds = std::stoi(next());
       else if (a == "--first-step-alternatives") args.first_step_alternatives = std::stoi(next());
+      else if (a == "--pair-exchanges") args.pair_exchanges = std::stoi(next());
       else if (a == "--calibration-starts") args.calibration_starts = std::stoi(next());
       else if (a == "--region-levels") {
         CandidateOptions candidates;
@@ -1197,9 +1201,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d grids of regions, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d pair exchanges, %d grids of regions, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.region_levels, args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.pair_exchanges, args.region_levels, args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1314,6 +1318,7 @@ int main(int argc, char** argv) {
           options.ranking.neighbour_refits = args.neighbour_refits;
           options.ranking.neighbour_rounds = args.neighbour_rounds;
           options.first_step_alternatives = args.first_step_alternatives;
+          options.pair_exchanges = args.pair_exchanges;
           options.calibration_starts = args.calibration_starts;
           options.candidates.region_levels = args.region_levels;
           options.candidates.region_elements = args.region_elements;

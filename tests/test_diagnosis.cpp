@@ -1145,6 +1145,46 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
   EXPECT_NE(report.find("exchange  "), std::string::npos) << report;
 }
 
+TEST(Diagnosis, TwoEffectsReplaceAStandInWhenTheResidualStaysLargerThanTheNoise) {
+  // Two 0.05 point masses at opposite corners of the top's free end. The first step takes the
+  // tip's node-set mass, which stands for both, and the next steps and exchanges add stand-ins
+  // around it: without two effects for one, the loop ends above the noise. Taken out, one of
+  // those is replaced by a mass at one corner, and the step after that finds the other corner.
+  const Problem hidden = WithHiddenEffect({"point_mass@[3.25,0,0]:mass=0.05", "point_mass@[3.25,1,1.5]:mass=0.05"}, 54);
+  DiagnosisOptions options;
+  options.first_step_alternatives = 0;  // the greedy path alone, so that no other path finds them
+  options.max_steps = 6;
+  options.pair_exchanges = 0;
+  const Diagnosis single = diagnose(hidden, hidden.initial_values(), options);
+  ASSERT_TRUE(single.final_fit.test);
+  ASSERT_TRUE(single.final_fit.test->model_form_error) << "the case no longer needs two for one:\n"
+                                                       << format_steps(hidden, single);
+  options.pair_exchanges = DiagnosisOptions().pair_exchanges;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const std::string report = format_diagnosis(hidden, d);
+  const auto pair = std::find_if(d.exchanges.begin(), d.exchanges.end(),
+                                 [](const DiagnosisStep& x) { return std::isfinite(x.pair_score_change); });
+  ASSERT_NE(pair, d.exchanges.end()) << report;
+  EXPECT_LT(pair->pair_score_change, 0);
+  ASSERT_LT(pair->after_step, static_cast<int>(d.steps.size())) << "no step follows the pair's exchange\n" << report;
+  EXPECT_NE(report.find("and the next step: with the others in, the two score"), std::string::npos) << report;
+  double total_mass = 0;
+  for (const Vec3& truth : {Vec3(3.25, 0, 0), Vec3(3.25, 1, 1.5)}) {
+    bool found = false;
+    for (size_t k = 0; k < d.effects.size(); ++k) {
+      const std::optional<Vec3> at = effect_location(hidden.model, d.effects[k]);
+      if (d.effects[k].change.kind == ModelChange::Kind::AddPointMass && at && (*at - truth).norm() < 1e-9) {
+        found = true;
+        total_mass += d.final_parameters[static_cast<Eigen::Index>(hidden.parameters.size() + k)];
+      }
+    }
+    EXPECT_TRUE(found) << "no mass at " << truth.transpose() << "\n" << report;
+  }
+  EXPECT_NEAR(total_mass, 0.1, 0.03) << report;
+  ASSERT_TRUE(d.final_fit.test);
+  EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
+}
+
 TEST(Diagnosis, TheStepwiseTextPutsAStepAfterTheExchangeThatPrecededIt) {
   // Two forward steps, an exchange of the first effect, then a third step on the model the
   // exchange left: the text tells them in that order, the exchange before step 3.

@@ -97,6 +97,16 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// refit there when that scores higher. A forward step chooses with the later effects missing,
   /// and with several effects at once the first accepted often stands in for several.
   bool exchange = true;
+  /// Two effects for one, when the residual is still larger than the noise after the forward
+  /// steps and the exchange pass (and fewer than max_steps effects were accepted): each accepted
+  /// effect in turn is taken out, and each of this many best significant refits in its place is
+  /// followed by the best significant step from there; the pair replaces the effect when the model
+  /// then scores lower in chi-square plus the first step's critical value and the kind penalty per
+  /// effect (as Diagnosis::paths are judged). Two effects near one another can each hide the other
+  /// from a screen: a point mass fitted at one end of a beam takes up what a mass at the other
+  /// end would explain, and that second mass shows only once the first is spread as it truly is.
+  /// Each try costs a screen. Range: [0, 100] (0: none).
+  int pair_exchanges = 2;
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
   /// significant at the stated level once the others are in the model.
   bool backward = true;
@@ -211,6 +221,11 @@ struct MODALCAL_EXPORT DiagnosisStep {
   /// For an exchange: how many forward steps the loop had taken when it was made. A forward step
   /// may follow an exchange that changed the model (its number is then larger than this).
   int after_step = 0;
+  /// For an exchange of two effects for one (DiagnosisOptions::pair_exchanges): the change in
+  /// score (chi-square plus the first step's critical value and the kind penalty per effect) of
+  /// this effect with the forward step that follows it (step `after_step + 1`) against the
+  /// replaced effect alone; negative, as only a lower score is taken. NaN for every other exchange.
+  double pair_score_change = NAN;
 };
 
 /// How much of the residual the mesh accounts for. Both meshes are solved at the calibrated

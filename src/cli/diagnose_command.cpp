@@ -38,6 +38,7 @@ struct DiagnoseArgs {
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
+  int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   double mesh_check = 1.5;
   bool no_backward = false;
@@ -247,6 +248,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
     e["replaced_score"] = json_number(x.replaced_score);
     e["replaced_on_bound"] = x.replaced_on_bound;
     e["after_step"] = x.after_step;
+    e["pair_score_change"] = json_number(x.pair_score_change);
     json["exchanges"].push_back(e);
   }
   json["accepted"] = d.accepted();
@@ -424,6 +426,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.resolution = args.resolution;
   options.max_steps = args.max_steps;
   options.first_step_alternatives = args.first_step_alternatives;
+  options.pair_exchanges = args.pair_exchanges;
   options.calibration_starts = args.calibration_starts;
   options.candidates.region_elements = args.region_size;
   options.candidates.region_levels = args.region_levels;
@@ -604,6 +607,11 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "the first step's next-best effects and keep the path that ends lowest (default " +
                       std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
       ->check(non_negative_number());
+  cmd->add_option("--pair-exchanges", args->pair_exchanges,
+                  "when the loop ends above the noise, try two effects for each accepted one: this many of the best "
+                  "in its place, each followed by the best step from there (default " +
+                      std::to_string(DiagnosisOptions().pair_exchanges) + "; 0: none)")
+      ->check(FiniteRange(0, 100));
   cmd->add_option("--calibration-starts", args->calibration_starts,
                   "when the first calibration leaves more than the noise, calibrate again from this many starts "
                   "spread over the parameters' bounds and keep the lowest: a local minimum looks like a model-form "

@@ -144,6 +144,10 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
     if (error) *error = "first_step_alternatives = " + detail::option_text(first_step_alternatives) + ": must be >= 0";
     return false;
   }
+  if (pair_exchanges < 0 || pair_exchanges > 100) {
+    if (error) *error = "pair_exchanges = " + detail::option_text(pair_exchanges) + ": must be in [0, 100]";
+    return false;
+  }
   if (calibration_starts < 0 || calibration_starts > 1000) {
     if (error) *error = "calibration_starts = " + detail::option_text(calibration_starts) + ": must be in [0, 1000]";
     return false;
@@ -1000,6 +1004,18 @@ bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps) {
   return here == sorted_names(there) && same_fit(earlier.steps[steps - 1].effect.chi2_after);
 }
 
+/// Forward steps while another may be taken (max_steps, the data's resolution,
+/// stop_when_consistent) and one is significant. Returns true when one was taken.
+bool step_on(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d) {
+  bool stepped = false;
+  while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps &&
+         !at_resolution(state->fit, options.ranking.resolution) &&
+         !(options.stop_when_consistent && consistent_with_noise(state->fit)) &&
+         forward_step(fitted, state, options, true, memo, d))
+    stepped = true;
+  return stepped;
+}
+
 /// The exchange pass, and while it changes the model, forward steps on the model it leaves and
 /// the exchange pass again (at most kExchangeRounds times). An exchange that trades a stand-in
 /// (a block's scale for the region that carried two effects' change) changes what the residual
@@ -1014,16 +1030,91 @@ StatesWithout exchange_and_step_again(const Problem& fitted, LoopState* state, c
     const size_t exchanged = d->exchanges.size();
     made = exchange_pass(fitted, state, options, memo, d);
     if (d->exchanges.size() == exchanged || round + 1 == kExchangeRounds) break;
-    bool stepped = false;
-    while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps &&
-           !at_resolution(state->fit, options.ranking.resolution) &&
-           !(options.stop_when_consistent && consistent_with_noise(state->fit)) &&
-           forward_step(fitted, state, options, true, memo, d))
-      stepped = true;
-    if (!stepped) break;
+    if (!step_on(fitted, state, options, memo, d)) break;
     made = StatesWithout();
   }
   return made;
+}
+
+/// One try of two effects for one (pair_exchange): the state with the effect `with`'s refit in
+/// place of the one taken out (`without` is the state without it, `screened` its screen), then
+/// the best significant step from there, and the score (path_score's terms) of what changes.
+struct PairTry {
+  size_t replacement = 0;                ///< the index of the refit in the screen without
+  LoopState with;                        ///< `without` with the replacement
+  const EffectRanking* next = nullptr;   ///< the screen of `with`
+  std::optional<LoopState> pair;         ///< `with` and its best significant step
+  double score = INFINITY;               ///< chi-square plus the two effects' critical values and penalties
+};
+
+PairTry try_pair(const Problem& fitted, const LoopState& without, const EffectRanking& screened, size_t replacement,
+                 double critical, const DiagnosisOptions& options, ScreenMemo* memo) {
+  const RankedEffect& first = screened.effects[replacement];
+  std::vector<EffectCandidate> effects = without.effects;
+  effects.push_back(first.candidate);
+  PairTry t{replacement, make_state(fitted, effects, first.parameters, options), nullptr, std::nullopt, INFINITY};
+  t.next = &memo->rank(t.with, options);
+  const RankedEffect* second = acceptable(*t.next);
+  if (!second) return t;
+  effects.push_back(second->candidate);
+  t.pair = make_state(fitted, effects, second->parameters, options);
+  t.score = t.pair->fit.statistic + 2 * critical + first.kind_penalty + second->kind_penalty;
+  return t;
+}
+
+/// Two effects for one (DiagnosisOptions::pair_exchanges): when the residual is still larger than
+/// the noise, each accepted effect in turn is taken out, each of the best significant refits in
+/// its place followed by the best significant step from there, and the best such pair replaces it
+/// when the model scores lower (path_score's terms). An exchange and a step record the change.
+/// `made`: the states without each effect, as the exchange pass left them (taken, and given back
+/// when nothing changes). Returns true when the model changed.
+bool pair_exchange(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, StatesWithout* made,
+                   ScreenMemo* memo, Diagnosis* d) {
+  const size_t first = d->started_with.size();
+  if (options.pair_exchanges == 0 || !state->fit.test || consistent_with_noise(state->fit) ||
+      state->effects.size() <= first || static_cast<int>(state->effects.size() - first) >= options.max_steps)
+    return false;
+  const double critical = d->rankings.front().critical_value;
+  std::vector<std::optional<LoopState>> without = states_without_each(fitted, *state, options, std::move(*made));
+  std::optional<PairTry> best;
+  size_t replaced = 0;
+  double best_change = 0;  // in score: a pair must lower it
+  for (size_t k = first; k < state->effects.size(); ++k) {
+    const DiagnosisStep* incumbent = step_that_added(*d, state->effects[k].name);
+    if (!incumbent || !without[k]) continue;
+    const double score_now = state->fit.statistic + critical + incumbent->effect.kind_penalty;
+    const EffectRanking& screened = memo->rank(*without[k], options);
+    int tried = 0;
+    for (size_t i = 0; i < screened.effects.size() && tried < options.pair_exchanges; ++i) {
+      if (!screened.effects[i].acceptable()) break;  // the acceptable refits come first
+      if (screened.effects[i].candidate.name == state->effects[k].name) continue;
+      ++tried;
+      PairTry t = try_pair(fitted, *without[k], screened, i, critical, options, memo);
+      if (t.score - score_now < best_change) {
+        best_change = t.score - score_now;
+        best = std::move(t);
+        replaced = k;
+      }
+    }
+  }
+  if (!best) {
+    made->states = std::move(without);
+    made->known.assign(made->states.size(), true);
+    return false;
+  }
+  const LoopState& out = *without[replaced];
+  DiagnosisStep exchange = step_accepting(memo->rank(out, options), out.problem().model,
+                                          step_that_added(*d, state->effects[replaced].name)->step, best->replacement);
+  exchange.replaces = state->effects[replaced].name;
+  exchange.replaced_score = lr_statistic(*d, out, *state) - step_that_added(*d, exchange.replaces)->effect.kind_penalty;
+  exchange.after_step = static_cast<int>(d->steps.size());
+  exchange.pair_score_change = best_change;
+  d->exchanges.push_back(std::move(exchange));
+  d->rankings.push_back(*best->next);
+  d->steps.push_back(step_accepting(*best->next, best->with.problem().model, static_cast<int>(d->steps.size()) + 1));
+  *state = std::move(*best->pair);
+  *made = StatesWithout();
+  return true;
 }
 
 /// What a path's walk ended at, when given a path walked before (walk()).
@@ -1059,6 +1150,10 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
   StatesWithout made = exchange_and_step_again(fitted, &state, options, memo, d);
+  if (pair_exchange(fitted, &state, options, &made, memo, d)) {
+    step_on(fitted, &state, options, memo, d);
+    made = exchange_and_step_again(fitted, &state, options, memo, d);
+  }
   if (options.backward) backward_pass(fitted, &state, options, std::move(made), d);
   end_at(state, d);
   return WalkEnd::kEnd;
@@ -1573,6 +1668,10 @@ std::string exchange_text(const DiagnosisStep& x) {
   if (x.replaced_on_bound)
     std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, the first ends on a bound\n",
                   x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value);
+  else if (std::isfinite(x.pair_score_change))
+    std::snprintf(line, sizeof line,
+                  "  exchange  %s -> %s = %.4g and the next step: with the others in, the two score %.4g lower than the first alone\n",
+                  x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, -x.pair_score_change);
   else
     std::snprintf(line, sizeof line, "  exchange  %s -> %s = %.4g: with the others in, S %.4g beats %.4g\n",
                   x.replaces.c_str(), x.effect.candidate.name.c_str(), x.effect.value, x.effect.score(),
