@@ -1036,9 +1036,9 @@ StatesWithout exchange_and_step_again(const Problem& fitted, LoopState* state, c
   return made;
 }
 
-/// One try of two effects for one (pair_exchange): the state with the effect `with`'s refit in
-/// place of the one taken out (`without` is the state without it, `screened` its screen), then
-/// the best significant step from there, and the score (path_score's terms) of what changes.
+/// One try of two effects for one (pair_exchange): `without` (the state with one effect taken
+/// out) with the refit `replacement` of its screen in that effect's place, then the best
+/// significant step from there, and the score of the two (path_score's terms).
 struct PairTry {
   size_t replacement = 0;                ///< the index of the refit in the screen without
   LoopState with;                        ///< `without` with the replacement
@@ -1047,6 +1047,8 @@ struct PairTry {
   double score = INFINITY;               ///< chi-square plus the two effects' critical values and penalties
 };
 
+/// The try of `screened`'s refit `replacement` (an acceptable one) in `without`, `critical` the
+/// first step's critical value.
 PairTry try_pair(const Problem& fitted, const LoopState& without, const EffectRanking& screened, size_t replacement,
                  double critical, const DiagnosisOptions& options, ScreenMemo* memo) {
   const RankedEffect& first = screened.effects[replacement];
