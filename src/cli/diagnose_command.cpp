@@ -552,11 +552,21 @@ void add_test_flags(CLI::App* cmd, DiagnoseArgs* args) {
       ->check(FiniteRange(1e-12, 0.01));
 }
 
-/// The flags that leave out or reorder parts of the loop's walk.
+/// The flags that widen, leave out or reorder parts of the loop's walk.
 void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
   cmd->add_flag("--walks-in-turn", args->walks_in_turn,
                 "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
                 "refits in threads: slower, and less peak memory (LFU 0.7: 0.7 GB against 1.0)");
+  cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
+                  "when the loop takes two or more steps or ends above the noise, walk it again from this many of "
+                  "the first step's next-best effects and keep the path that ends lowest (default " +
+                      std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
+      ->check(non_negative_number());
+  cmd->add_option("--pair-exchanges", args->pair_exchanges,
+                  "when the loop ends above the noise, try two effects for each accepted one: this many of the best "
+                  "in its place, each followed by the best step from there (default " +
+                      std::to_string(DiagnosisOptions().pair_exchanges) + "; 0: none)")
+      ->check(FiniteRange(0, 100));
   cmd->add_flag("--no-exchange", args->no_exchange,
                 "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
   cmd->add_flag("--no-backward", args->no_backward,
@@ -602,16 +612,6 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")
       ->check(FiniteRange(0.0, 4.0));
-  cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
-                  "when the loop takes two or more steps or ends above the noise, walk it again from this many of "
-                  "the first step's next-best effects and keep the path that ends lowest (default " +
-                      std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
-      ->check(non_negative_number());
-  cmd->add_option("--pair-exchanges", args->pair_exchanges,
-                  "when the loop ends above the noise, try two effects for each accepted one: this many of the best "
-                  "in its place, each followed by the best step from there (default " +
-                      std::to_string(DiagnosisOptions().pair_exchanges) + "; 0: none)")
-      ->check(FiniteRange(0, 100));
   cmd->add_option("--calibration-starts", args->calibration_starts,
                   "when the first calibration leaves more than the noise, calibrate again from this many starts "
                   "spread over the parameters' bounds and keep the lowest: a local minimum looks like a model-form "
