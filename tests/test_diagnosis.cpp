@@ -1154,6 +1154,13 @@ TEST(Diagnosis, TwoEffectsReplaceAStandInWhenTheResidualStaysLargerThanTheNoise)
   DiagnosisOptions options;
   options.first_step_alternatives = 0;  // the greedy path alone, so that no other path finds them
   options.max_steps = 6;
+  std::string error;
+  for (int bad : {-1, 101}) {
+    DiagnosisOptions invalid;
+    invalid.pair_exchanges = bad;
+    EXPECT_FALSE(invalid.IsValid(&error)) << bad;
+    EXPECT_NE(error.find("pair_exchanges"), std::string::npos) << error;
+  }
   options.pair_exchanges = 0;
   const Diagnosis single = diagnose(hidden, hidden.initial_values(), options);
   ASSERT_TRUE(single.final_fit.test);
