@@ -1107,6 +1107,25 @@ TEST(ScreenMap, NoiseAloneGivesAFlatMapWithoutPeaks) {
   EXPECT_GE(map.node_score.minCoeff(), 0);
 }
 
+/// The total of the point masses d kept at the places `truths` (each to 1e-9); a failure for each
+/// place where it kept none.
+double MassesKeptAt(const Problem& hidden, const Diagnosis& d, const std::vector<Vec3>& truths,
+                    const std::string& report) {
+  double total_mass = 0;
+  for (const Vec3& truth : truths) {
+    bool found = false;
+    for (size_t k = 0; k < d.effects.size(); ++k) {
+      const std::optional<Vec3> at = effect_location(hidden.model, d.effects[k]);
+      if (d.effects[k].change.kind == ModelChange::Kind::AddPointMass && at && (*at - truth).norm() < 1e-9) {
+        found = true;
+        total_mass += d.final_parameters[static_cast<Eigen::Index>(hidden.parameters.size() + k)];
+      }
+    }
+    EXPECT_TRUE(found) << "no mass at " << truth.transpose() << "\n" << report;
+  }
+  return total_mass;
+}
+
 TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
   // Two 0.05 point masses on the base, at [1, 0, 0] and [1, 1, 1.5]. With the other one missing,
   // each forward step can only take a mass that stands for both (on this seed they came out near
@@ -1127,19 +1146,7 @@ TEST(Diagnosis, TheExchangePassPutsEachEffectWhereItIsOnceTheOthersAreIn) {
     EXPECT_GE(x.after_step, x.step);
     EXPECT_LE(x.after_step, static_cast<int>(d.steps.size()));
   }
-  double total_mass = 0;
-  for (const Vec3& truth : {Vec3(1, 0, 0), Vec3(1, 1, 1.5)}) {
-    bool found = false;
-    for (size_t k = 0; k < d.effects.size(); ++k) {
-      const std::optional<Vec3> at = effect_location(hidden.model, d.effects[k]);
-      if (d.effects[k].change.kind == ModelChange::Kind::AddPointMass && at && (*at - truth).norm() < 1e-9) {
-        found = true;
-        total_mass += d.final_parameters[static_cast<Eigen::Index>(hidden.parameters.size() + k)];
-      }
-    }
-    EXPECT_TRUE(found) << "no mass at " << truth.transpose() << "\n" << report;
-  }
-  EXPECT_NEAR(total_mass, 0.1, 0.03) << report;
+  EXPECT_NEAR(MassesKeptAt(hidden, d, {Vec3(1, 0, 0), Vec3(1, 1, 1.5)}, report), 0.1, 0.03) << report;
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
   EXPECT_NE(report.find("exchange  "), std::string::npos) << report;
@@ -1175,19 +1182,7 @@ TEST(Diagnosis, TwoEffectsReplaceAStandInWhenTheResidualStaysLargerThanTheNoise)
   EXPECT_LT(pair->pair_score_change, 0);
   ASSERT_LT(pair->after_step, static_cast<int>(d.steps.size())) << "no step follows the pair's exchange\n" << report;
   EXPECT_NE(report.find("and the next step: with the others in, the two score"), std::string::npos) << report;
-  double total_mass = 0;
-  for (const Vec3& truth : {Vec3(3.25, 0, 0), Vec3(3.25, 1, 1.5)}) {
-    bool found = false;
-    for (size_t k = 0; k < d.effects.size(); ++k) {
-      const std::optional<Vec3> at = effect_location(hidden.model, d.effects[k]);
-      if (d.effects[k].change.kind == ModelChange::Kind::AddPointMass && at && (*at - truth).norm() < 1e-9) {
-        found = true;
-        total_mass += d.final_parameters[static_cast<Eigen::Index>(hidden.parameters.size() + k)];
-      }
-    }
-    EXPECT_TRUE(found) << "no mass at " << truth.transpose() << "\n" << report;
-  }
-  EXPECT_NEAR(total_mass, 0.1, 0.03) << report;
+  EXPECT_NEAR(MassesKeptAt(hidden, d, {Vec3(3.25, 0, 0), Vec3(3.25, 1, 1.5)}, report), 0.1, 0.03) << report;
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
 }
