@@ -103,8 +103,9 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// followed by the best significant step from there; the pair replaces the effect when the model
   /// then scores lower in chi-square plus the first step's critical value and the kind penalty per
   /// effect (as Diagnosis::paths are judged). Two effects near one another can each hide the other
-  /// from a screen: a point mass fitted at one end of a beam takes up what a mass at the other
-  /// end would explain, and that second mass shows only once the first is spread as it truly is.
+  /// from a screen: a point mass fitted at one end of a beam takes up part of what a mass at the
+  /// other end would explain, so no screen with it in ranks the second mass, and no replacement of
+  /// it alone fits better; with the first replaced, the second fits plainly.
   /// Each try costs a screen. Range: [0, 100] (0: none).
   int pair_exchanges = 2;
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
