@@ -60,7 +60,8 @@
 // ground in the same direction within two element sizes for node truths and heavier-region
 // truths); every truth effect matched by some kept effect; final residual p-value; relative error of the accepted value's change from nominal
 // against the truth's (compliance for supports; not for Poisson or part-of-block truths);
-// wall and CPU seconds.
+// wall and CPU seconds. The single effects are also tallied by signal strength, lambda / lambda*:
+// finding the place takes more signal than flagging the effect does.
 //
 // What the data could tell (an oracle, for truths on the problem's own mesh): the truth model
 // itself, calibrated from the true parameter values, gives a chi-square; a miss whose data
@@ -947,6 +948,16 @@ double value_error(const EffectSpec& t, const EffectCandidate& a, double value) 
   return value / t.value - 1;
 }
 
+/// A single effect's signal strength, lambda / lambda*, as a bin of the breakdown that shows how
+/// finding the place needs more signal than the detection does ("01-02" is barely detectable).
+std::string strength_bin(double ratio) {  // zero-padded: the rows print in order
+  if (ratio < 1) return "00-01";
+  if (ratio < 2) return "01-02";
+  if (ratio < 5) return "02-05";
+  if (ratio < 20) return "05-20";
+  return "20 and above";
+}
+
 /// With DIAGNOSIS_BENCHMARK_TRACE: the 25 best candidates of each later screen of the kept path
 /// (after each step, and where the steps stopped), to see what a later step had to choose from.
 void trace_later_screens(const Diagnosis& d) {
@@ -1218,7 +1229,7 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
 
   json cases_json = json::array();
-  std::map<std::string, Row> rows, family_rows;
+  std::map<std::string, Row> rows, family_rows, strength_rows;
   std::vector<std::string> row_order;
   auto row = [&](std::map<std::string, Row>& m, const std::string& key) -> Row& {
     if (&m == &rows && std::find(row_order.begin(), row_order.end(), key) == row_order.end()) row_order.push_back(key);
@@ -1525,6 +1536,9 @@ int main(int argc, char** argv) {
                                    (c.effects[0].family == Family::AnyNodeMass || c.effects[0].family == Family::AnyNodeSpring
                                         ? (c.effects[0].in_list ? " (surface)" : " (interior)")
                                         : "")));
+      if (c.effects.size() == 1 && (c.category == Category::Single || c.category == Category::Outside))
+        tally(row(strength_rows, std::string(c.category == Category::Single ? "candidate family" : "outside the list") +
+                                     ", " + strength_bin(c.lambda_case / ctx.lambda_star)));
       if (c.category == Category::Single) tally(single_rows);
       if (c.category == Category::Outside) tally(outside_rows);
       if (c.category == Category::Multi) tally(multi_rows);
@@ -1554,6 +1568,8 @@ int main(int argc, char** argv) {
   }
   std::printf("\n## single effects by family\n");
   for (const auto& [key, r] : family_rows) print_row(key, r, true);
+  std::printf("\n## single effects by signal strength, lambda / lambda*\n");
+  for (const auto& [key, r] : strength_rows) print_row(key, r, true);
   std::printf("(flagged: of the detectable cases, or for controls of all; right kind+place: the first kept accepted effect; "
               "right named: the first step's effect or one of the alternatives it lists (effects the data hardly tell "
               "from it) has the right kind and place; "
