@@ -948,6 +948,16 @@ double value_error(const EffectSpec& t, const EffectCandidate& a, double value) 
   return value / t.value - 1;
 }
 
+/// The place spread the diagnosis states for the effect it named `name` (the last step or
+/// exchange that put it in; DiagnosisStep::place_spread), 0 where it states none.
+double stated_spread(const Diagnosis& d, const std::string& name) {
+  double spread = 0;
+  for (const std::vector<DiagnosisStep>* list : {&d.steps, &d.exchanges})
+    for (const DiagnosisStep& s : *list)
+      if (s.effect.candidate.name == name && std::isfinite(s.place_spread)) spread = s.place_spread;
+  return spread;
+}
+
 /// A single effect's signal strength, lambda / lambda*, as a bin of the breakdown that shows how
 /// finding the place needs more signal than the detection does ("01-02" is barely detectable).
 std::string strength_bin(double ratio) {  // zero-padded: the rows print in order
@@ -1004,6 +1014,7 @@ struct Outcome {
   int steps = 0, dropped = 0, exchanges = 0;
   bool first_right = false, all_found = false;
   bool named_right = false;  // the first step's effect or one of its alternatives is a truth effect
+  bool within_spread = false;  // the first kept effect's kind is right, its place within its stated spread
   int spurious = 0;  // kept effects that match no truth effect
   double p_before = NAN, p_final = NAN, chi2_before = NAN, chi2_final = NAN;
   double chi2_truth = NAN;  // truth_model_chi2(), for truths on the problem's own mesh
@@ -1109,6 +1120,9 @@ struct Row {
   // Detectable cases on the problem's mesh whose first accepted effect is not the truth, and of
   // them those whose data favour the truth model by 20 : 1 or more (data_favour_truth()).
   int missed = 0, missed_data_favour_truth = 0;
+  // Detectable cases whose first kept effect has the right kind and lies within the place spread
+  // the diagnosis states for it (DiagnosisStep::place_spread) plus the place tolerance.
+  int within_spread = 0;
   std::vector<double> p_final, p_all, value_errors, wall, cpu;
 };
 
@@ -1376,11 +1390,13 @@ int main(int argc, char** argv) {
             for (size_t t = 0; t < c.effects.size(); ++t) {
               const EffectSpec& e = c.effects[t];
               const double h2 = 2 * (e.location ? element_size_at(ctx, *e.location) : 0);
+              if (m == 0 && kinds_match(e, a, kept[m].second, where, h2 + stated_spread(d, a.name)))
+                o.within_spread = true;
               if (!kinds_match(e, a, kept[m].second, where, h2)) continue;
               matched = true;
               found[t] = true;
               if (m == 0) {
-                o.first_right = true;
+                o.first_right = o.within_spread = true;
                 o.value_error = value_error(e, a, kept[m].second);
               }
             }
@@ -1476,6 +1492,7 @@ int main(int argc, char** argv) {
         cj["steps"] = o.steps_json;
         cj["first_right_kind_and_place"] = o.first_right;
         cj["right_among_named"] = o.named_right;
+        cj["right_within_stated_spread"] = o.within_spread;
         cj["all_found"] = o.all_found;
         cj["spurious"] = o.spurious;
         cj["p_before"] = o.p_before;
@@ -1512,6 +1529,7 @@ int main(int argc, char** argv) {
           if (o.flagged) ++r.flagged_detectable;
           if (o.first_right) ++r.right;
           if (o.named_right) ++r.named;
+          if (o.within_spread) ++r.within_spread;
           if (c.effects.size() > 1) {
             ++r.multi_detectable;
             if (o.all_found) ++r.all_found;
@@ -1598,6 +1616,10 @@ int main(int argc, char** argv) {
   std::printf("%-62s %-16s %s\n", "physical effect accepted on <= 10 % of finer-mesh controls",
               pct(fine_controls_row.any_accepted, f_n).c_str(),
               f_n == 0 ? "no cases" : verdict(fine_controls_row.any_accepted <= 0.1 * f_n + 1e-9));
+  std::printf("\n## the place as stated: right kind, the truth within the stated place spread (DiagnosisStep::place_spread) "
+              "plus two element sizes\n");
+  std::printf("%-62s %-16s\n", "single effects (candidate family)", pct(single_rows.within_spread, single_rows.detectable).c_str());
+  std::printf("%-62s %-16s\n", "single effects (outside the list)", pct(outside_rows.within_spread, outside_rows.detectable).c_str());
   std::printf("\n## what the data could tell: misses whose data favour the truth by 20 : 1 or more\n"
               "# (the truth model's own chi-square, calibrated, less 1 per value it does not fit, at least 6 below "
               "the final one, plus the critical value for each effect it has more; detectable cases on the "

@@ -411,6 +411,10 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_EQ(step["name"], "added_mass_tip.mass");
   ASSERT_TRUE(step["location"].is_array());
   EXPECT_NEAR(step["location"][0].get<double>(), 4, 1e-12);  // the tip is the face x = 4
+  // Its place spread: a distance, and at least its own place.
+  ASSERT_TRUE(step.contains("place_spread") && step["place_spread"].is_number()) << step.dump();
+  EXPECT_GE(step["place_spread"].get<double>(), 0) << step.dump();
+  EXPECT_GE(step["places"].get<int>(), 1) << step.dump();
   EXPECT_EQ(d["accepted"], nlohmann::json::array({"added_mass_tip.mass"}));
   EXPECT_EQ(d["residual_final"]["model_form_error"], false);
   EXPECT_LT(d["residual_final"]["statistic"].get<double>(), step["chi2_before"].get<double>());

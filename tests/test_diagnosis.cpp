@@ -981,6 +981,29 @@ TEST(Diagnosis, AStepSaysWhenThePriorOverKindsChoseAgainstTheData) {
       << with_paths;
 }
 
+// The first step's stated place spread, recomputed from the first screen: the farthest place of
+// an acceptable refit of the same change whose statistic is within the alternative margin of the
+// step's, and the number of such places.
+void ExpectThePlaceSpreadOfTheFirstStep(const Problem& problem, const Diagnosis& d, const std::string& report) {
+  const DiagnosisStep& first = d.steps.at(0);
+  ASSERT_TRUE(first.location) << report;
+  double spread = 0;
+  int places = 1;
+  for (const RankedEffect& r : d.ranking.effects) {
+    if (r.candidate.name == first.effect.candidate.name || !r.acceptable() ||
+        !detail::same_change(r.candidate, first.effect.candidate) ||
+        r.statistic < first.effect.statistic - DiagnosisStep::kAlternativeMargin)
+      continue;
+    spread = std::max(spread, (*effect_location(problem.model, r.candidate) - *first.location).norm());
+    ++places;
+  }
+  EXPECT_EQ(first.places, places) << report;
+  EXPECT_NEAR(first.place_spread, spread, 1e-12) << report;
+  if (places > 1) {
+    EXPECT_NE(report.find(std::to_string(places) + " places fit alike"), std::string::npos) << report;
+  }
+}
+
 TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
   // A mass on the base's top face, two element sizes from the nearest sensor and on no node set:
   // no listed candidate is there, but the spatial family has a point mass at every surface node.
@@ -994,6 +1017,7 @@ TEST(Diagnosis, TheSpatialScreenFindsAMassBetweenTheSensors) {
   const double element_size = 0.5;
   EXPECT_LT((*first.location - Vec3(1, 0.5, 1.5)).norm(), 2 * element_size + 1e-9) << report;
   EXPECT_NEAR(first.effect.value, 0.08, 0.02) << report;
+  ExpectThePlaceSpreadOfTheFirstStep(hidden, d, report + format_steps(hidden, d));
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
   // Every free surface node carries one: many more candidates than the listed families.
@@ -1013,6 +1037,8 @@ TEST(Diagnosis, APoissonsRatioNoScaleReproducesIsNamed) {
   EXPECT_EQ(d.steps[0].effect.candidate.name, "base.nu") << report;
   EXPECT_NEAR(d.steps[0].effect.value, 0.15, 3 * d.steps[0].effect.standard_error + 0.01) << report;
   EXPECT_FALSE(d.steps[0].location) << report;  // block-wide
+  EXPECT_TRUE(std::isnan(d.steps[0].place_spread)) << report;  // and so it states no spread
+  EXPECT_EQ(d.steps[0].places, 0) << report;
 }
 
 TEST(EffectCandidates, RegionsComeOnGridsTwiceAsCoarseAsTheOneBefore) {

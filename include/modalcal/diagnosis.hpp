@@ -193,6 +193,15 @@ struct MODALCAL_EXPORT DiagnosisStep {
   int screened = 0;             ///< candidates screened in the step
   double critical_value = 0;    ///< of the step's likelihood-ratio test
   std::optional<Vec3> location;  ///< effect_location(); none for a block-wide effect
+  /// How far the data let the place move: the largest distance from `location` to the place of
+  /// another acceptable refit of the step's that makes the same change (kind and property) and
+  /// whose likelihood-ratio statistic is within kAlternativeMargin of the effect's or above it;
+  /// `places` counts those places, its own included. Among the places the step refitted (the
+  /// best predictions and the neighbours the refits climbed to), so at least this. A mass on a
+  /// slender member, say, is placed along it far better than across it. NaN and 0 for a
+  /// block-wide effect.
+  double place_spread = NAN;
+  int places = 0;
   /// The step's other significant refits whose likelihood-ratio statistic (ΔX²) is within
   /// DiagnosisStep::kAlternativeMargin of the accepted one's, or above it: effects these data
   /// hardly tell from it (a likelihood ratio below about 20 to 1), the prior over kinds

@@ -181,6 +181,8 @@ nlohmann::json step_json(const Problem& problem, const DiagnosisStep& s) {
           {"description", e.candidate.description},
           {"change", to_string(e.candidate.change)},
           {"location", location_json(s.location)},
+          {"place_spread", json_number(s.place_spread)},
+          {"places", s.places},
           {"value", json_number(e.value)},
           {"standard_error", json_number(e.standard_error)},
           {"chi2_before", s.chi2_before},

@@ -282,6 +282,25 @@ const RankedEffect* bound_limited(const Diagnosis& d) {
   return nullptr;
 }
 
+/// Sets step->place_spread and places (DiagnosisStep) from `ranking`, whose effect `index` it
+/// accepts.
+void set_place_spread(const EffectRanking& ranking, const Model& model, size_t index, DiagnosisStep* step) {
+  if (!step->location) return;
+  const RankedEffect& best = ranking.effects[index];
+  step->place_spread = 0;
+  step->places = 1;
+  for (size_t k = 0; k < ranking.effects.size(); ++k) {
+    const RankedEffect& other = ranking.effects[k];
+    if (k == index || !other.acceptable() || !detail::same_change(other.candidate, best.candidate) ||
+        other.statistic < best.statistic - DiagnosisStep::kAlternativeMargin)
+      continue;
+    const std::optional<Vec3> place = effect_location(model, other.candidate);
+    if (!place) continue;
+    step->place_spread = std::max(step->place_spread, (*place - *step->location).norm());
+    ++step->places;
+  }
+}
+
 /// The record of accepting `ranking`'s best effect (acceptable()) as step `number`: its test, its
 /// place in `model` and the alternatives the data hardly tell from it.
 DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, int number, size_t index = 0) {
@@ -293,6 +312,7 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
   step.screened = ranking.screened;
   step.critical_value = ranking.critical_value;
   step.location = effect_location(model, best.candidate);
+  set_place_spread(ranking, model, index, &step);
   for (size_t k = 0; k < ranking.effects.size(); ++k) {
     const RankedEffect& other = ranking.effects[k];
     if (k == index) continue;
@@ -1646,9 +1666,13 @@ std::string fit_line_text(const FitState& fit) {
 std::string forward_step_text(const Problem& problem, const Diagnosis& d, const DiagnosisStep& s) {
   std::string where = "block-wide";
   if (s.location) {
-    char b[96];
+    char b[160];
     std::snprintf(b, sizeof b, "at [%.4g, %.4g, %.4g]", (*s.location)[0], (*s.location)[1], (*s.location)[2]);
     where = b;
+    if (s.places > 1) {
+      std::snprintf(b, sizeof b, ", or within %.3g of there: %d places fit alike", s.place_spread, s.places);
+      where += b;
+    }
   }
   char line[400];
   std::snprintf(line, sizeof line, "  step %-3d  + %s = %.4g%s (%s): %.4g -> %.4g (%s %.4g > %.4g, %d screened)\n",
