@@ -61,7 +61,9 @@
 // truths); every truth effect matched by some kept effect; final residual p-value; relative error of the accepted value's change from nominal
 // against the truth's (compliance for supports; not for Poisson or part-of-block truths);
 // wall and CPU seconds. The single effects are also tallied by signal strength, lambda / lambda*:
-// finding the place takes more signal than flagging the effect does.
+// finding the place takes more signal than flagging the effect does. "The place as stated": the
+// first kept effect has the right kind, the truth within its stated place spread
+// (DiagnosisStep::place_spread) plus two element sizes.
 //
 // What the data could tell (an oracle, for truths on the problem's own mesh): the truth model
 // itself, calibrated from the true parameter values, gives a chi-square; a miss whose data
