@@ -1363,6 +1363,33 @@ TEST(Diagnosis, APathThatReachesTheGreedyPathsEffectsIsWalkedNoFurther) {
   EXPECT_NE(report.find("joined the path from"), std::string::npos) << report;
 }
 
+TEST(Diagnosis, APathThatHoldsTheKeptEndAndOneUnneededEffectIsWalkedNoFurther) {
+  // The two effects of TheStepwiseLoopFindsTwoEffectsInTwoSteps. The greedy path ends at them in
+  // two steps; the path from a next-best first effect reaches them too, with its own first effect
+  // still in, which the data no longer need. The backward pass would drop it and end where the
+  // greedy path did, so the walk stops there, before its screen, exchange and backward pass.
+  const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  const std::string report = format_diagnosis(hidden, d);
+  ASSERT_TRUE(d.started_with.empty());
+  // After more forward steps than the joined path has effects, a path cannot hold that path's
+  // effects alone (steps only add): it held them and more.
+  const auto held_more = std::find_if(d.paths.begin(), d.paths.end(), [&](const DiagnosisPath& p) {
+    return !p.joined.empty() && p.joined_after > static_cast<int>(p.accepted.size());
+  });
+  ASSERT_NE(held_more, d.paths.end()) << report;
+  const auto earlier =
+      std::find_if(d.paths.begin(), held_more, [&](const DiagnosisPath& p) { return p.first == held_more->joined; });
+  ASSERT_NE(earlier, held_more) << report;
+  EXPECT_EQ(held_more->joined_after, static_cast<int>(earlier->accepted.size()) + 1) << report;
+  EXPECT_EQ(held_more->accepted, earlier->accepted);
+  EXPECT_CLOSE(held_more->chi2_final, earlier->chi2_final, 1e-12);
+  EXPECT_FALSE(held_more->kept);
+  std::vector<std::string> accepted = d.accepted();
+  std::sort(accepted.begin(), accepted.end());
+  EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+}
+
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
   // The model starts with a mass scale of the top that the truth does not have (as a problem's
   // `effects:` entry with `enable: true` would add it); the loop finds the joint's rotational

@@ -311,8 +311,9 @@ struct MODALCAL_EXPORT DiagnosisPath {
   bool kept = false;  ///< the diagnosis is this path's
   /// Not empty when, after `joined_after` forward steps, the path held the effects that the path
   /// from `joined` (the one kept at the time) held after as many steps or at its end, at the same
-  /// fit: it was walked no further and ends where that path ends (accepted, chi2_final and score
-  /// are that path's).
+  /// fit, or those it ended with and one more whose gain is below the backward pass's critical
+  /// value (the backward pass would drop it): it was walked no further and ends where that path
+  /// ends (accepted, chi2_final and score are that path's).
   std::string joined;
   int joined_after = 0;
   /// The path took no step after its first, fitted no better than the kept path's first step and

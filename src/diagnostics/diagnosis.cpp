@@ -450,11 +450,15 @@ std::string calibrate_without(const Problem& fitted, const LoopState& state, siz
 /// The likelihood-ratio statistic of `with` against `without` (one effect fewer): the chi-square
 /// it gains, or without a stated noise the F statistic, the gain over `with`'s residual per
 /// degree of freedom (the residual with every effect estimates the noise).
-double lr_statistic(const Diagnosis& d, const LoopState& without, const LoopState& with) {
-  const double increase = without.fit.statistic - with.fit.statistic;
+double lr_statistic(const Diagnosis& d, double chi2_without, const LoopState& with) {
+  const double increase = chi2_without - with.fit.statistic;
   if (d.noise_known) return increase;
   const int dof = d.rankings.front().num_data - static_cast<int>(with.parameters.size());
   return increase / std::max(with.fit.statistic / std::max(1, dof), d.rankings.front().resolution_variance);
+}
+
+double lr_statistic(const Diagnosis& d, const LoopState& without, const LoopState& with) {
+  return lr_statistic(d, without.fit.statistic, with);
 }
 
 /// `state` without its effect `k` from calibrate_without()'s result `refit`; nullopt when that
@@ -1010,14 +1014,29 @@ std::vector<std::string> sorted_names(const std::vector<EffectCandidate>& effect
   return names;
 }
 
+/// True when `state` holds the effects the `earlier` path ended with and one more, which the data
+/// do not need there: without it, the chi-square would rise only to that path's end, by less than
+/// the backward pass's critical value at `significance`. The backward pass would drop it and end
+/// where that path did; the screen, exchange and drops on the way there would find nothing new.
+bool holds_the_end_and_one_unneeded(const LoopState& state, const Diagnosis& earlier, double significance) {
+  if (state.effects.size() != earlier.effects.size() + 1) return false;
+  const std::vector<std::string> ended = sorted_names(earlier.effects), here = sorted_names(state.effects);
+  if (!std::includes(here.begin(), here.end(), ended.begin(), ended.end())) return false;
+  const EffectRanking& first = earlier.rankings.front();
+  const double critical = gain_critical_value(first, significance, static_cast<int>(state.parameters.size()));
+  return lr_statistic(earlier, earlier.final_fit.statistic, state) < critical;
+}
+
 /// True when `state`, after `steps` forward steps, holds the effects the `earlier` path held after
-/// as many, or those it ended with, at the same fit (χ² within 1e-3 relative). From the first
-/// both paths take the same steps, exchanges and drops; from the second, the walk would screen
-/// once more where the earlier path's exchange and backward pass left it, as that path did not.
-bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps) {
+/// as many, or those it ended with, at the same fit (χ² within 1e-3 relative), or those it ended
+/// with and one the data do not need (holds_the_end_and_one_unneeded). From the first both paths
+/// take the same steps, exchanges and drops; from the second, the walk would screen once more where
+/// the earlier path's exchange and backward pass left it, as that path did not.
+bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps, double significance) {
   auto same_fit = [&](double chi2) { return std::abs(state.fit.statistic - chi2) <= 1e-3 * std::max(1.0, chi2); };
   const std::vector<std::string> here = sorted_names(state.effects);
   if (here == sorted_names(earlier.effects) && same_fit(earlier.final_fit.statistic)) return true;
+  if (holds_the_end_and_one_unneeded(state, earlier, significance)) return true;
   if (steps == 0 || steps > earlier.steps.size()) return false;
   std::vector<EffectCandidate> there = earlier.started_with;
   for (size_t k = 0; k < steps; ++k) there.push_back(earlier.steps[k].effect.candidate);
@@ -1161,12 +1180,12 @@ void end_at(const LoopState& state, Diagnosis* d) {
 WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, ScreenMemo* memo,
              Diagnosis* d, const Diagnosis* earlier = nullptr) {
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
-    if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
+    if (earlier && joins(state, *earlier, d->steps.size(), options.ranking.significance)) return WalkEnd::kJoined;
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
     const bool may_accept = k < options.max_steps && !at_resolution(state.fit, options.ranking.resolution);
     if (!forward_step(fitted, &state, options, may_accept, memo, d)) break;
   }
-  if (earlier && joins(state, *earlier, d->steps.size())) return WalkEnd::kJoined;
+  if (earlier && joins(state, *earlier, d->steps.size(), options.ranking.significance)) return WalkEnd::kJoined;
   end_at(state, d);
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
