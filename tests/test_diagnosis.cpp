@@ -992,7 +992,7 @@ void ExpectThePlaceSpreadOfTheFirstStep(const Problem& problem, const Diagnosis&
   for (const RankedEffect& r : d.ranking.effects) {
     if (r.candidate.name == first.effect.candidate.name || !r.acceptable() ||
         !detail::same_change(r.candidate, first.effect.candidate) ||
-        r.statistic < first.effect.statistic - DiagnosisStep::kAlternativeMargin)
+        r.statistic <= first.effect.statistic - DiagnosisStep::kAlternativeMargin)
       continue;
     spread = std::max(spread, (*effect_location(problem.model, r.candidate) - *first.location).norm());
     ++places;

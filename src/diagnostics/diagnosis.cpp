@@ -282,6 +282,13 @@ const RankedEffect* bound_limited(const Diagnosis& d) {
   return nullptr;
 }
 
+/// True when `other` is an acceptable refit whose likelihood-ratio statistic is within
+/// DiagnosisStep::kAlternativeMargin of `best`'s or above it: the data alone hardly tell the two
+/// apart (a likelihood ratio below about 20 : 1).
+bool hardly_told_apart(const RankedEffect& other, const RankedEffect& best) {
+  return other.acceptable() && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin;
+}
+
 /// Sets step->place_spread and places (DiagnosisStep) from `ranking`, whose effect `index` it
 /// accepts.
 void set_place_spread(const EffectRanking& ranking, const Model& model, size_t index, DiagnosisStep* step) {
@@ -291,8 +298,7 @@ void set_place_spread(const EffectRanking& ranking, const Model& model, size_t i
   step->places = 1;
   for (size_t k = 0; k < ranking.effects.size(); ++k) {
     const RankedEffect& other = ranking.effects[k];
-    if (k == index || !other.acceptable() || !detail::same_change(other.candidate, best.candidate) ||
-        other.statistic < best.statistic - DiagnosisStep::kAlternativeMargin)
+    if (k == index || !hardly_told_apart(other, best) || !detail::same_change(other.candidate, best.candidate))
       continue;
     const std::optional<Vec3> place = effect_location(model, other.candidate);
     if (!place) continue;
@@ -319,8 +325,7 @@ DiagnosisStep step_accepting(const EffectRanking& ranking, const Model& model, i
     // The data's verdict alone, without the prior over kinds: a likelihood ratio below 20 : 1,
     // or one in the other's favour that the prior overruled. Not the same effect a node or two
     // away (the neighbour refits), which says where, not what.
-    if (other.acceptable() && other.statistic > best.statistic - DiagnosisStep::kAlternativeMargin &&
-        !other.candidate.neighbour_of(best.candidate))
+    if (hardly_told_apart(other, best) && !other.candidate.neighbour_of(best.candidate))
       step.alternatives.push_back(other);
   }
   return step;
