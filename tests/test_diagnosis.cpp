@@ -15,6 +15,7 @@
 #include "modalcal/uncertainty.hpp"
 #include "modalcal/problem_file.hpp"
 #include "diagnostics/same_change.hpp"
+#include "diagnostics/path_join.hpp"
 #include "diagnostics/verdict_text.hpp"
 #include "test_util.hpp"
 
@@ -1363,28 +1364,43 @@ TEST(Diagnosis, APathThatReachesTheGreedyPathsEffectsIsWalkedNoFurther) {
   EXPECT_NE(report.find("joined the path from"), std::string::npos) << report;
 }
 
-TEST(Diagnosis, APathThatHoldsTheKeptEndAndOneUnneededEffectIsWalkedNoFurther) {
-  // The two effects of TheStepwiseLoopFindsTwoEffectsInTwoSteps. The greedy path ends at them in
-  // two steps; the path from a next-best first effect reaches them too, with its own first effect
-  // still in, which the data no longer need. The backward pass would drop it and end where the
-  // greedy path did, so the walk stops there, before its screen, exchange and backward pass.
+TEST(Diagnosis, APathHoldsAnEndAndOneUnneededEffectOnlyWithExactlyOneMoreBelowTheCriticalValue) {
+  // The rule by which a later path stops as joined, apart from any route through the loop: the
+  // effects an earlier path ended with, in any order, and one more that gains less than the
+  // backward pass's critical value over that end.
+  const std::vector<std::string> ended{"j.krx", "top.mass_scale"};
+  const double critical = 6.63;
+  EXPECT_TRUE(detail::holds_the_end_and_one_unneeded({"top.mass_scale", "b.k1", "j.krx"}, ended, 0.4, critical));
+  EXPECT_TRUE(detail::holds_the_end_and_one_unneeded({"b.k1", "j.krx", "top.mass_scale"}, ended, -0.1, critical));
+  // Needed: the backward pass keeps it, so the path may still go somewhere new.
+  EXPECT_FALSE(detail::holds_the_end_and_one_unneeded({"b.k1", "j.krx", "top.mass_scale"}, ended, 9.0, critical));
+  EXPECT_FALSE(detail::holds_the_end_and_one_unneeded({"b.k1", "j.krx", "top.mass_scale"}, ended, critical, critical));
+  // Not that end and one more.
+  EXPECT_FALSE(detail::holds_the_end_and_one_unneeded({"b.k1", "j.krx", "top.k"}, ended, 0.4, critical));
+  EXPECT_FALSE(detail::holds_the_end_and_one_unneeded({"j.krx", "top.mass_scale"}, ended, 0.4, critical));
+  EXPECT_FALSE(
+      detail::holds_the_end_and_one_unneeded({"b.k1", "b.k2", "j.krx", "top.mass_scale"}, ended, 0.4, critical));
+}
+
+TEST(Diagnosis, EveryJoinedPathEndsWhereThePathItJoinedEnded) {
+  // The two effects of TheStepwiseLoopFindsTwoEffectsInTwoSteps, with the paths from the
+  // next-best first effects walked beside the greedy one. Whichever route each takes, a path
+  // that stops as joined records the end of the path it joined (its effects and chi-square), is
+  // not the one kept, and the diagnosis keeps the two effects of the truth.
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
   const Diagnosis d = diagnose(hidden, hidden.initial_values());
   const std::string report = format_diagnosis(hidden, d);
   ASSERT_TRUE(d.started_with.empty());
-  // After more forward steps than the joined path has effects, a path cannot hold that path's
-  // effects alone (steps only add): it held them and more.
-  const auto held_more = std::find_if(d.paths.begin(), d.paths.end(), [&](const DiagnosisPath& p) {
-    return !p.joined.empty() && p.joined_after > static_cast<int>(p.accepted.size());
-  });
-  ASSERT_NE(held_more, d.paths.end()) << report;
-  const auto earlier =
-      std::find_if(d.paths.begin(), held_more, [&](const DiagnosisPath& p) { return p.first == held_more->joined; });
-  ASSERT_NE(earlier, held_more) << report;
-  EXPECT_EQ(held_more->joined_after, static_cast<int>(earlier->accepted.size()) + 1) << report;
-  EXPECT_EQ(held_more->accepted, earlier->accepted);
-  EXPECT_CLOSE(held_more->chi2_final, earlier->chi2_final, 1e-12);
-  EXPECT_FALSE(held_more->kept);
+  ASSERT_GT(d.paths.size(), 1u) << report;
+  for (auto p = d.paths.begin(); p != d.paths.end(); ++p) {
+    if (p->joined.empty()) continue;
+    const auto earlier = std::find_if(d.paths.begin(), p, [&](const DiagnosisPath& e) { return e.first == p->joined; });
+    ASSERT_NE(earlier, p) << p->first << " joined a path not walked before it\n" << report;
+    EXPECT_EQ(p->accepted, earlier->accepted) << p->first << "\n" << report;
+    EXPECT_CLOSE(p->chi2_final, earlier->chi2_final, 1e-12);
+    EXPECT_FALSE(p->kept) << p->first;
+    EXPECT_GE(p->joined_after, 1) << p->first;
+  }
   std::vector<std::string> accepted = d.accepted();
   std::sort(accepted.begin(), accepted.end());
   EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;

@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "objective/shape_misfit.hpp"
+#include "path_join.hpp"
 #include "refit_walk.hpp"
 #include "same_change.hpp"
 #include "verdict_text.hpp"
@@ -1020,16 +1021,16 @@ std::vector<std::string> sorted_names(const std::vector<EffectCandidate>& effect
 }
 
 /// True when `state` holds the effects the `earlier` path ended with and one more, which the data
-/// do not need there: without it, the chi-square would rise only to that path's end, by less than
-/// the backward pass's critical value at `significance`. The backward pass would drop it and end
-/// where that path did; the screen, exchange and drops on the way there would find nothing new.
+/// do not need there (detail::holds_the_end_and_one_unneeded): without it, the chi-square would
+/// rise only to that path's end, by less than the backward pass's critical value at `significance`.
+/// The backward pass would drop it and end where that path did; the screen, exchange and drops on
+/// the way there would find nothing new.
 bool holds_the_end_and_one_unneeded(const LoopState& state, const Diagnosis& earlier, double significance) {
   if (state.effects.size() != earlier.effects.size() + 1) return false;
-  const std::vector<std::string> ended = sorted_names(earlier.effects), here = sorted_names(state.effects);
-  if (!std::includes(here.begin(), here.end(), ended.begin(), ended.end())) return false;
   const EffectRanking& first = earlier.rankings.front();
   const double critical = gain_critical_value(first, significance, static_cast<int>(state.parameters.size()));
-  return lr_statistic(earlier, earlier.final_fit.statistic, state) < critical;
+  return detail::holds_the_end_and_one_unneeded(names_of(state.effects), names_of(earlier.effects),
+                                                lr_statistic(earlier, earlier.final_fit.statistic, state), critical);
 }
 
 /// True when `state`, after `steps` forward steps, holds the effects the `earlier` path held after
