@@ -360,7 +360,7 @@ std::vector<std::string> names_of(const std::vector<EffectCandidate>& effects) {
 /// The screens one diagnosis ran, by the state they screened. An exchange screens the model without
 /// one effect, and without the last one taken that is the model the step before screened; another
 /// path's exchange often screens a model the first path's steps did. A state with the same effects
-/// in the same order at the same fit (chi-square within 1e-3 relative, as joins() judges paths)
+/// in the same order at the same fit (detail::same_fit, as joins() judges paths)
 /// gets that screen again: a new screen there would repeat it to within the refits' tolerance.
 class ScreenMemo {
  public:
@@ -405,7 +405,7 @@ class ScreenMemo {
   };
   const EffectRanking* find(const std::vector<std::string>& names, double chi2) const {
     for (const Entry& e : entries_)
-      if (e.names == names && std::abs(e.chi2 - chi2) <= 1e-3 * std::max(1.0, e.chi2)) return &e.ranking;
+      if (e.names == names && detail::same_fit(chi2, e.chi2)) return &e.ranking;
     return earlier_ ? earlier_->find(names, chi2) : nullptr;
   }
   std::deque<Entry> entries_;  // a deque, so that the references rank() returns stay valid
@@ -1013,13 +1013,6 @@ double path_score(const Diagnosis& d) {
   return score;
 }
 
-/// The names of `effects`, sorted.
-std::vector<std::string> sorted_names(const std::vector<EffectCandidate>& effects) {
-  std::vector<std::string> names = names_of(effects);
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
 /// True when `state` holds the effects the `earlier` path ended with and one more, which the data
 /// do not need there (detail::holds_the_end_and_one_unneeded): without it, the chi-square would
 /// rise only to that path's end, by less than the backward pass's critical value at `significance`.
@@ -1034,19 +1027,19 @@ bool holds_the_end_and_one_unneeded(const LoopState& state, const Diagnosis& ear
 }
 
 /// True when `state`, after `steps` forward steps, holds the effects the `earlier` path held after
-/// as many, or those it ended with, at the same fit (χ² within 1e-3 relative), or those it ended
+/// as many, or those it ended with, at the same fit (detail::same_effects_and_fit), or those it ended
 /// with and one the data do not need (holds_the_end_and_one_unneeded). From the first both paths
 /// take the same steps, exchanges and drops; from the second, the walk would screen once more where
 /// the earlier path's exchange and backward pass left it, as that path did not.
 bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps, double significance) {
-  auto same_fit = [&](double chi2) { return std::abs(state.fit.statistic - chi2) <= 1e-3 * std::max(1.0, chi2); };
-  const std::vector<std::string> here = sorted_names(state.effects);
-  if (here == sorted_names(earlier.effects) && same_fit(earlier.final_fit.statistic)) return true;
+  const std::vector<std::string> here = names_of(state.effects);
+  const double chi2 = state.fit.statistic;
+  if (detail::same_effects_and_fit(here, chi2, names_of(earlier.effects), earlier.final_fit.statistic)) return true;
   if (holds_the_end_and_one_unneeded(state, earlier, significance)) return true;
   if (steps == 0 || steps > earlier.steps.size()) return false;
   std::vector<EffectCandidate> there = earlier.started_with;
   for (size_t k = 0; k < steps; ++k) there.push_back(earlier.steps[k].effect.candidate);
-  return here == sorted_names(there) && same_fit(earlier.steps[steps - 1].effect.chi2_after);
+  return detail::same_effects_and_fit(here, chi2, names_of(there), earlier.steps[steps - 1].effect.chi2_after);
 }
 
 /// Forward steps while another may be taken (max_steps, the data's resolution,

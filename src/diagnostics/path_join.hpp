@@ -1,11 +1,31 @@
 #pragma once
-// Internal: when a path walked after the greedy one has nothing new ahead of it.
+// Internal: when a path walked after the greedy one has nothing new ahead of it, and when two
+// points of the loop are one.
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
 namespace modalcal::detail {
+
+/// True when `chi2` is the fit `reference` is, to rounding: within 1e-3 relative (of the larger of
+/// 1 and `reference`), as two refits of one model to the same minimum differ.
+inline bool same_fit(double chi2, double reference) {
+  return std::abs(chi2 - reference) <= 1e-3 * std::max(1.0, reference);
+}
+
+/// True when two points of paths through the loop hold the same effects (names, any order) at the
+/// same fit (same_fit()). From there both paths take the same steps.
+///
+///     same_effects_and_fit({"a", "b"}, 350.2, {"b", "a"}, 350.3);  // true
+///     same_effects_and_fit({"a", "b"}, 350.2, {"b", "a"}, 351.0);  // false: another minimum
+inline bool same_effects_and_fit(std::vector<std::string> here, double chi2_here, std::vector<std::string> there,
+                                 double chi2_there) {
+  std::sort(here.begin(), here.end());
+  std::sort(there.begin(), there.end());
+  return here == there && same_fit(chi2_here, chi2_there);
+}
 
 /// True when the effects `here` (names, any order) are the effects `ended` an earlier path ended
 /// with, and exactly one more whose likelihood-ratio gain over that end, `gain`, is below the
