@@ -70,6 +70,8 @@
 // favour the truth model over the diagnosis's final model by 20 : 1 or more (and, for each
 // effect the truth has more than was accepted, by the loop's critical value more) is one a
 // better rule could have avoided; the others are misses the data cannot tell from a right answer.
+// The data's ceiling per target: the detectable cases less those other misses, the most that any
+// rule answering by the data could score on the cases drawn.
 //
 // Usage: diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]]
 //          [--seed-base B] [--json FILE] [--significance A] [--dry-run] [--only CATEGORY]
@@ -1629,6 +1631,19 @@ int main(int argc, char** argv) {
   std::printf("%-62s %-16s\n", "single effects (candidate family)", pct(single_rows.missed_data_favour_truth, single_rows.missed).c_str());
   std::printf("%-62s %-16s\n", "single effects (outside the list)", pct(outside_rows.missed_data_favour_truth, outside_rows.missed).c_str());
   std::printf("%-62s %-16s\n", "two or three effects", pct(multi_rows.missed_data_favour_truth, multi_rows.missed).c_str());
+  // A miss whose data do not favour the truth by 20 : 1 fits about as well as the truth or
+  // better: a rule that answers by the data has no ground to prefer the truth there. So the
+  // targets' shares cannot exceed the detectable cases less those misses.
+  std::printf("\n## the data's ceiling: the detectable cases less the misses whose data do not favour the truth by 20 : 1\n"
+              "# (the most a rule that answers by the data can reach on these cases; beside the target)\n");
+  auto ceiling = [&](const std::string& what, const Row& r, int den, double target) {
+    const int reachable = den - (r.missed - r.missed_data_favour_truth);
+    std::printf("%-62s %-16s %s\n", what.c_str(), pct(reachable, den).c_str(),
+                den == 0 ? "no cases" : (reachable >= target * den - 1e-9 ? "target within reach" : "target above it"));
+  };
+  ceiling("single effects (candidate family), target 90 %", single_rows, single_rows.detectable, 0.9);
+  ceiling("single effects (outside the list), target 80 %", outside_rows, outside_rows.detectable, 0.8);
+  ceiling("two or three effects, every effect, target 80 %", multi_rows, multi_rows.multi_detectable, 0.8);
   std::printf("\n# total %.0f s wall, %.0f s CPU; load average %s\n", seconds_since(t_all), cpu_seconds() - cpu_all,
               bench::load_average().c_str());
   return 0;
