@@ -617,10 +617,12 @@ ProblemContext make_context(const std::string& path, const MeasurementNoise& noi
   for (int v = 0; v < model.num_nodes(); ++v)
     if (!ctx.blocks_of_node[v].empty() && !(ctx.fixed[v][0] && ctx.fixed[v][1] && ctx.fixed[v][2])) ctx.free_nodes.push_back(v);
 
-  // The cases are drawn from one fixed list, whatever the diagnosis screens (--region-levels), so
-  // that a seed draws the same case under every option: the regions of the finest grid only.
+  // The cases are drawn from one fixed list, whatever the diagnosis screens (--region-levels,
+  // --no-region-stagger), so that a seed draws the same case under every option: the regions of
+  // the finest grid only, unshifted.
   CandidateOptions drawn_from;
   drawn_from.region_levels = 1;
+  drawn_from.region_stagger = false;
   ctx.candidates = generate_candidates(noise_weighted(ctx.problem, noise), drawn_from);
   for (size_t k = 0; k < ctx.candidates.size(); ++k) {
     const EffectCandidate& c = ctx.candidates[k];
@@ -1052,6 +1054,7 @@ struct Args {
   int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   int region_levels = CandidateOptions().region_levels;
+  bool region_stagger = CandidateOptions().region_stagger;
   double region_elements = CandidateOptions().region_elements;
   double refit_function_tolerance = RankingOptions::default_refit_options().function_tolerance;
   double refit_span_share = RankingOptions().refit_span_share;
@@ -1073,6 +1076,7 @@ void usage() {
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
       "                    [--calibration-starts N]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
+      "                    [--no-region-stagger]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
       "                    [--refit-span-share X]\n"
       "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
@@ -1084,7 +1088,8 @@ void usage() {
       "  --region-levels: CandidateOptions::region_levels, the grids of block regions screened (the\n"
       "  cases are drawn from the finest grid's whatever it is); --region-size:\n"
       "  CandidateOptions::region_elements, the finest regions' size in element sizes (the cases are\n"
-      "  drawn from regions of the default size whatever it is);\n"
+      "  drawn from regions of the default size whatever it is); --no-region-stagger:\n"
+      "  CandidateOptions::region_stagger off, no shifted grids;\n"
       "  --refit-function-tolerance: RankingOptions::refit.function_tolerance; --refit-span-share:\n"
       "  RankingOptions::refit_span_share (0: every refit on the whole model);\n"
       "  DIAGNOSIS_BENCHMARK_TRACE=1 (environment): the sizing of each truth, and per case the first\n"
@@ -1172,6 +1177,7 @@ int main(int argc, char** argv) {
       else if (a == "--first-step-alternatives") args.first_step_alternatives = std::stoi(next());
       else if (a == "--pair-exchanges") args.pair_exchanges = std::stoi(next());
       else if (a == "--calibration-starts") args.calibration_starts = std::stoi(next());
+      else if (a == "--no-region-stagger") args.region_stagger = false;
       else if (a == "--region-levels") {
         CandidateOptions candidates;
         candidates.region_levels = args.region_levels = std::stoi(next());
@@ -1230,9 +1236,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d pair exchanges, %d grids of regions, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.pair_exchanges, args.region_levels, args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1350,6 +1356,7 @@ int main(int argc, char** argv) {
           options.pair_exchanges = args.pair_exchanges;
           options.calibration_starts = args.calibration_starts;
           options.candidates.region_levels = args.region_levels;
+          options.candidates.region_stagger = args.region_stagger;
           options.candidates.region_elements = args.region_elements;
           options.ranking.refit.function_tolerance = args.refit_function_tolerance;
           options.ranking.refit_span_share = args.refit_span_share;

@@ -185,11 +185,15 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
   // Regions three element sizes (1.5) across: the base's 24 elements (centroids x = 0.25 ... 1.75)
   // fall in two cubes along x, so two regions, each with a stiffness and a mass scale acting on
   // its elements' nodes; top and pad fit in one cube each and get none (their block-wide scales
-  // do that).
+  // do that). That is the unshifted grid; the shifted ones (on by default) add regions to these.
+  CandidateOptions unshifted;
+  unshifted.region_stagger = false;
+  const std::vector<EffectCandidate> on_one_grid = generate_candidates(problem, unshifted);
   std::vector<const EffectCandidate*> regions;
-  for (const EffectCandidate& c : candidates)
+  for (const EffectCandidate& c : on_one_grid)
     if (c.change.kind == ModelChange::Kind::AddRegion) regions.push_back(&c);
   ASSERT_EQ(regions.size(), 4u);
+  for (const EffectCandidate* c : regions) EXPECT_TRUE(Find(candidates, c->name)) << c->name;
   for (const EffectCandidate* c : regions) {
     EXPECT_EQ(c->change.places[0].node_set, "base") << c->name;
     EXPECT_EQ(c->variable, EffectCandidate::Variable::Log) << c->name;
@@ -197,7 +201,7 @@ TEST(EffectCandidates, FollowTheModelsStructure) {
     ASSERT_TRUE(c->location) << c->name;
     EXPECT_LT((*c->location)[0], 2.0) << c->name;
   }
-  const EffectCandidate* root_region = Find(candidates, "base_region_0p75_0p5_0p75_n18.stiffness_scale");
+  const EffectCandidate* root_region = Find(on_one_grid, "base_region_0p75_0p5_0p75_n18.stiffness_scale");
   ASSERT_TRUE(root_region);
   EXPECT_NE(root_region->description.find("its 18 elements"), std::string::npos) << root_region->description;
   // Switched off by the options.
@@ -1042,10 +1046,9 @@ TEST(Diagnosis, APoissonsRatioNoScaleReproducesIsNamed) {
   EXPECT_EQ(d.steps[0].places, 0) << report;
 }
 
-TEST(EffectCandidates, RegionsComeOnGridsTwiceAsCoarseAsTheOneBefore) {
-  // A bar twelve elements long, one across: cubes of 3 element sizes make four regions along it,
-  // cubes of 6 two (each the union of two of the first), cubes of 12 hold the whole bar (none).
-  const Problem bar = LoadProblem(WriteTempFile("bar.yaml", R"(
+/// A bar twelve elements long and one across, clamped at one end.
+Problem LoadTwelveElementBar() {
+  return LoadProblem(WriteTempFile("bar.yaml", R"(
 mesh:
   element: hex8
   element_size: 1
@@ -1064,9 +1067,16 @@ sensors:
 measured:
   synthetic: {modes: [1, 2, 3], shapes: true}
 )"));
+}
+
+TEST(EffectCandidates, RegionsComeOnGridsTwiceAsCoarseAsTheOneBefore) {
+  // A bar twelve elements long, one across: cubes of 3 element sizes make four regions along it,
+  // cubes of 6 two (each the union of two of the first), cubes of 12 hold the whole bar (none).
+  const Problem bar = LoadTwelveElementBar();
   auto region_sizes = [&](int levels) {
     CandidateOptions options;
     options.region_levels = levels;
+    options.region_stagger = false;  // the next test has the shifted grids
     std::multiset<size_t> sizes;
     for (const EffectCandidate& c : generate_candidates(bar, options))
       if (c.change.kind == ModelChange::Kind::AddRegion && c.change.property == "stiffness_scale")
@@ -1077,11 +1087,37 @@ measured:
   EXPECT_EQ(region_sizes(2), (std::multiset<size_t>{3, 3, 3, 3, 6, 6}));
   EXPECT_EQ(region_sizes(3), region_sizes(2));  // the third grid's one cube holds the whole bar
   EXPECT_EQ(CandidateOptions().region_levels, 3);
+  EXPECT_TRUE(CandidateOptions().region_stagger);
   CandidateOptions too_many;
   too_many.region_levels = 7;
   std::string error;
   EXPECT_FALSE(too_many.IsValid(&error));
   EXPECT_NE(error.find("region_levels"), std::string::npos) << error;
+}
+
+TEST(EffectCandidates, ShiftedGridsCentreARegionWhereTheUnshiftedOnesPutAFace) {
+  // The same bar. Shifted by two element sizes (half a cube of 3, rounded), the finest grid's
+  // cubes hold elements 0, 1-3, 4-6, 7-9 and 10-11: a part of the bar centred at x = 3 or 9,
+  // where the unshifted cubes meet, has a region of its own. Shifted by three, the grid of 6 adds
+  // elements 3-8 (its end cubes are regions of the finest grid already, screened once); the grid
+  // of 12, shifted by six, repeats the grid of 6.
+  const Problem bar = LoadTwelveElementBar();
+  CandidateOptions options;
+  std::multiset<std::vector<int>> regions;
+  for (const EffectCandidate& c : generate_candidates(bar, options))
+    if (c.change.kind == ModelChange::Kind::AddRegion && c.change.property == "stiffness_scale")
+      regions.insert(region_elements(bar.model, c.change).second);
+  auto span = [](int first, int last) {
+    std::vector<int> elements;
+    for (int e = first; e <= last; ++e) elements.push_back(e);
+    return elements;
+  };
+  const std::multiset<std::vector<int>> expected = {
+      span(0, 2), span(3, 5), span(6, 8), span(9, 11),               // cubes of 3
+      span(0, 0), span(1, 3), span(4, 6), span(7, 9), span(10, 11),  // cubes of 3, shifted by 2
+      span(0, 5), span(6, 11),                                       // cubes of 6
+      span(3, 8)};                                                   // cubes of 6, shifted by 3
+  EXPECT_EQ(regions, expected);
 }
 
 TEST(Diagnosis, TheRegionScreenFindsAStifferPartOfABlock) {
@@ -1113,7 +1149,9 @@ TEST(Diagnosis, TheRegionScreenFindsAStifferPartOfABlock) {
   const auto [block, elements] = region_elements(hidden.model, first.change);
   EXPECT_EQ(hidden.model.blocks[block].name, "base");
   EXPECT_NE(std::find(elements.begin(), elements.end(), static_cast<int>(best)), elements.end()) << report;
-  EXPECT_EQ(map.region_candidates, 12);  // the base's four regions and the top's two (along z), two scales each
+  // Two scales each of the base's four regions and the top's two (along z) on the unshifted grid,
+  // and of the 22 the shifted grids add (they cut the blocks across y too).
+  EXPECT_EQ(map.region_candidates, 56);
 }
 
 TEST(ScreenMap, NoiseAloneGivesAFlatMapWithoutPeaks) {

@@ -150,6 +150,12 @@ struct MODALCAL_EXPORT CandidateOptions {
   double region_elements = 3;
   /// How many grids of regions, each twice as coarse as the one before. Range: [1, 6].
   int region_levels = 3;
+  /// Each grid also shifted along every axis by half a cube, rounded to whole element sizes (a
+  /// body-centred second grid). A changed part of a block rarely lines up with one grid: a part
+  /// centred on a face of its cubes is split between two regions, neither of which acts as it
+  /// does. With the shifted grid every part has a region centred within about a quarter cube of
+  /// its centre along each axis.
+  bool region_stagger = true;
   /// Two blocks "nearly touch" when their nearest nodes are closer than this times the larger
   /// element size of the two. Range: > 0.
   double gap_factor = 2.0;

@@ -433,24 +433,31 @@ class CandidateFactory {
       const std::vector<Vec3> centroids = element_centroids(model_, model_.blocks[b]);
       std::set<std::string> places;
       for (int level = 0; level < options_.region_levels; ++level)
-        for (const std::string& place :
-             region_places(static_cast<int>(b), centroids, options_.region_elements * (1 << level)))
-          if (places.insert(place).second)
-            for (const char* property : {"stiffness_scale", "mass_scale"})
-              changes.push_back("region@" + place + ":" + property);
+        for (const bool shifted : {false, true}) {
+          if (shifted && !options_.region_stagger) continue;
+          const double elements = options_.region_elements * (1 << level);
+          // Whole element sizes, so that the shifted grid's faces lie between centroids as well.
+          const double shift = shifted ? std::round(0.5 * elements) : 0.0;
+          for (const std::string& place : region_places(static_cast<int>(b), centroids, elements, shift))
+            if (places.insert(place).second)
+              for (const char* property : {"stiffness_scale", "mass_scale"})
+                changes.push_back("region@" + place + ":" + property);
+        }
     }
     return changes;
   }
 
   /// "BLOCK/[lo]/[hi]" for each region of block b (element `centroids`): the centroids binned in
-  /// cubes of `elements` element sizes, each box the tight bounds of one cube's centroids (so that
-  /// no centroid of another cube lies in it); none when one cube holds the whole block.
-  std::vector<std::string> region_places(int b, const std::vector<Vec3>& centroids, double elements) const {
+  /// cubes of `elements` element sizes, the grid shifted by `shift` element sizes along every axis, each
+  /// box the tight bounds of one cube's centroids (so that no centroid of another cube lies in
+  /// it); none when one cube holds the whole block.
+  std::vector<std::string> region_places(int b, const std::vector<Vec3>& centroids, double elements,
+                                         double shift) const {
     const ElementBlock& block = model_.blocks[b];
     Vec3 lowest = Vec3::Constant(std::numeric_limits<double>::infinity());
     for (const Vec3& c : centroids) lowest = lowest.cwiseMin(c);
     const double h = scales_.block_size(b), cell = elements * h;
-    lowest.array() -= 0.5 * h;  // about the block's lowest corner: cube faces between centroids
+    lowest.array() -= (0.5 + shift) * h;  // about the block's lowest corner: cube faces between centroids
     std::map<std::array<long, 3>, std::pair<Vec3, Vec3>> boxes;  // cube -> bounds of its centroids
     for (const Vec3& c : centroids) {
       std::array<long, 3> key;
