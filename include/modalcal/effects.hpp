@@ -11,7 +11,7 @@
 /// | where | candidates | variable | bounds |
 /// |---|---|---|---|
 /// | each block | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
-/// | each region of a block (a grid of cells `region_elements` elements across) | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
+/// | each region of a block (a grid of cells `region_elements` elements across, and the grid shifted by half a cell) | `stiffness_scale`, `mass_scale` | log | ×/÷ 10 |
 /// | each joint, spring | its six components: present ones | log | ×/÷ 100 |
 /// | | absent ones (the rotational ones a nominal model leaves out) | linear from 0 | [0, 100 k_ref] |
 /// | each point mass | `mass` | log | ×/÷ 10 |

@@ -426,7 +426,8 @@ class CandidateFactory {
   const Joint* model_joint(const std::string& name) const { return find_joint(model_, name); }
 
   /// The stiffness and mass scale changes of every block's regions on each grid
-  /// (CandidateOptions::region_levels), a box that a coarser grid repeats screened once.
+  /// (CandidateOptions::region_levels) and on each grid shifted (region_stagger), a box that
+  /// another grid repeats screened once.
   std::vector<std::string> region_changes() const {
     std::vector<std::string> changes;
     for (size_t b = 0; b < model_.blocks.size(); ++b) {
