@@ -1260,6 +1260,8 @@ int main(int argc, char** argv) {
     return m[key];
   };
   Row single_rows, outside_rows, multi_rows, controls_row, fine_controls_row, detectable_effect_rows;
+  // Per problem, its slowest diagnosis: the wall seconds and the case number.
+  std::vector<std::pair<double, int>> slowest(args.problems.size(), {0.0, -1});
   const auto t_all = Clock::now();
   const double cpu_all = cpu_seconds();
 
@@ -1522,6 +1524,7 @@ int main(int argc, char** argv) {
       if (!args.json_path.empty()) std::ofstream(args.json_path) << cases_json.dump(1) << "\n";
 
       // Tallies.
+      if (o.ran && o.wall > slowest[j].first) slowest[j] = {o.wall, k};
       auto tally = [&](Row& r) {
         ++r.n;
         if (!c.error.empty()) {
@@ -1632,6 +1635,15 @@ int main(int argc, char** argv) {
   std::printf("%-62s %-16s %s\n", "physical effect accepted on <= 10 % of finer-mesh controls",
               pct(fine_controls_row.any_accepted, f_n).c_str(),
               f_n == 0 ? "no cases" : verdict(fine_controls_row.any_accepted <= 0.1 * f_n + 1e-9));
+  // The time bound: 3 x the 17-40 s diagnoses took on the LFU 0.7 mesh before the
+  // spatial families. A wall time: it holds for a run alone on the machine, with diagnose's
+  // default of one refit per core (--jobs).
+  constexpr double kSlowestDiagnosisBound = 3 * 40.0;
+  for (size_t j = 0; j < args.problems.size(); ++j)
+    if (slowest[j].second >= 0)
+      std::printf("%-62s %-16s %s\n", ("slowest diagnosis <= " + format("%.0f", kSlowestDiagnosisBound) + " s wall, " + args.problems[j]).c_str(),
+                  (format("%.1f", slowest[j].first) + " s (case " + std::to_string(slowest[j].second) + ")").c_str(),
+                  verdict(slowest[j].first <= kSlowestDiagnosisBound));
   std::printf("\n## the place as stated: right kind, the truth within the stated place spread (DiagnosisStep::place_spread) "
               "plus two element sizes\n");
   std::printf("%-62s %-16s\n", "single effects (candidate family)", pct(single_rows.within_spread, single_rows.detectable).c_str());
