@@ -309,13 +309,14 @@ struct MODALCAL_EXPORT DiagnosisPath {
   /// penalty 2 ln n_kind (the prior the ranking orders by): the paths' common measure.
   double score = 0;
   bool kept = false;  ///< the diagnosis is this path's
-  /// Not empty when, after `joined_after` forward steps, the path held the effects that the path
-  /// from `joined` (the one kept at the time) held after as many steps or at its end, at the same
-  /// fit, or those it ended with and one more whose gain is below the backward pass's critical
-  /// value (the backward pass would drop it): it was walked no further and ends where that path
-  /// ends (accepted, chi2_final and score are that path's).
+  /// Not empty when, after `joined_after` forward steps and `joined_after_exchanges` exchanges,
+  /// the path held the effects that the path from `joined` (the one kept at the time) held after
+  /// as many steps or at its end, at the same fit, or those it ended with and one more whose gain
+  /// is below the backward pass's critical value (the backward pass would drop it): it was walked
+  /// no further and ends where that path ends (accepted, chi2_final and score are that path's).
   std::string joined;
   int joined_after = 0;
+  int joined_after_exchanges = 0;
   /// The path took no step after its first, fitted no better than the kept path's first step and
   /// scored no lower than the kept path, so it was walked no further (its exchange could at best
   /// trade its effect for that one): accepted, chi2_final and score are where it stood.

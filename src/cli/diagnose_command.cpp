@@ -270,6 +270,7 @@ void add_loop_json(const Problem& problem, const Diagnosis& d, nlohmann::json* o
                              {"kept", x.kept},
                              {"joined", x.joined.empty() ? nlohmann::json() : nlohmann::json(x.joined)},
                              {"joined_after", x.joined_after},
+                             {"joined_after_exchanges", x.joined_after_exchanges},
                              {"no_second_step", x.no_second_step}});
   json["screens"] = {{"run", d.screens}, {"taken_again", d.screens_reused}};
   json["started_with"] = nlohmann::json::array();

@@ -3,10 +3,12 @@
 #include "support/text_util.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
+#include <functional>
 #include <future>
 #include <limits>
 #include <memory>
@@ -559,16 +561,21 @@ const DiagnosisStep* step_that_added(const Diagnosis& d, const std::string& name
   return nullptr;
 }
 
+/// Whether a walk has reached a path walked before (joins()), asked after each change of its model
+/// past the forward steps as well: an exchange can bring it there as a step can, and from there it
+/// would only retrace that path. Always false on the first path.
+using Joined = std::function<bool(const LoopState&)>;
+
 /// The exchange pass. Each forward step chose its effect with the later ones missing from the
 /// model, and with several effects at once the first often stands in for them together (one
 /// region's mass scale for two point masses). With two or more accepted, each in turn is taken out,
 /// the rest refitted, and the candidates screened again with the others in the model; the best
 /// significant refit there replaces it when its score S beats what the accepted effect scores
 /// there (its own likelihood-ratio statistic less its kind's penalty), or whenever it has gone to a
-/// bound of its range. Returns the states without each effect it made of the state it leaves, for
-/// the backward pass.
+/// bound of its range. An exchange that reaches the path walked before (`joined`) ends the pass.
+/// Returns the states without each effect it made of the state it leaves, for the backward pass.
 StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const DiagnosisOptions& options,
-                            ScreenMemo* memo, Diagnosis* d) {
+                            ScreenMemo* memo, const Joined& joined, Diagnosis* d) {
   const size_t first = d->started_with.size();
   if (state->effects.size() < first + 2) return StatesWithout();
   StatesWithout made(state->effects.size());
@@ -603,6 +610,7 @@ StatesWithout exchange_pass(const Problem& fitted, LoopState* state, const Diagn
     d->exchanges.push_back(std::move(exchange));
     *state = make_state(fitted, effects, p, options);
     made = StatesWithout(state->effects.size());  // those were of the state before the exchange
+    if (joined(*state)) break;
   }
   return made;
 }
@@ -1043,10 +1051,11 @@ bool joins(const LoopState& state, const Diagnosis& earlier, size_t steps, doubl
 }
 
 /// Forward steps while another may be taken (max_steps, the data's resolution,
-/// stop_when_consistent) and one is significant. Returns true when one was taken.
-bool step_on(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d) {
+/// stop_when_consistent, not `joined`) and one is significant. Returns true when one was taken.
+bool step_on(const Problem& fitted, LoopState* state, const DiagnosisOptions& options, ScreenMemo* memo,
+             const Joined& joined, Diagnosis* d) {
   bool stepped = false;
-  while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps &&
+  while (static_cast<int>(state->effects.size() - d->started_with.size()) < options.max_steps && !joined(*state) &&
          !at_resolution(state->fit, options.ranking.resolution) &&
          !(options.stop_when_consistent && consistent_with_noise(state->fit)) &&
          forward_step(fitted, state, options, true, memo, d))
@@ -1057,18 +1066,19 @@ bool step_on(const Problem& fitted, LoopState* state, const DiagnosisOptions& op
 /// The exchange pass, and while it changes the model, forward steps on the model it leaves and
 /// the exchange pass again (at most kExchangeRounds times). An exchange that trades a stand-in
 /// (a block's scale for the region that carried two effects' change) changes what the residual
-/// still holds, so a step screened before it may have missed what the trade uncovers. Returns
-/// the exchange pass's states without each effect when the model is still the one it left.
+/// still holds, so a step screened before it may have missed what the trade uncovers. Stops where
+/// the walk reaches the path walked before (`joined`). Returns the exchange pass's states without
+/// each effect when the model is still the one it left.
 StatesWithout exchange_and_step_again(const Problem& fitted, LoopState* state, const DiagnosisOptions& options,
-                                      ScreenMemo* memo, Diagnosis* d) {
+                                      ScreenMemo* memo, const Joined& joined, Diagnosis* d) {
   constexpr int kExchangeRounds = 3;
   StatesWithout made;
   if (!options.exchange) return made;
   for (int round = 0; round < kExchangeRounds; ++round) {
     const size_t exchanged = d->exchanges.size();
-    made = exchange_pass(fitted, state, options, memo, d);
-    if (d->exchanges.size() == exchanged || round + 1 == kExchangeRounds) break;
-    if (!step_on(fitted, state, options, memo, d)) break;
+    made = exchange_pass(fitted, state, options, memo, joined, d);
+    if (d->exchanges.size() == exchanged || round + 1 == kExchangeRounds || joined(*state)) break;
+    if (!step_on(fitted, state, options, memo, joined, d) || joined(*state)) break;
     made = StatesWithout();
   }
   return made;
@@ -1175,24 +1185,31 @@ void end_at(const LoopState& state, Diagnosis* d) {
 /// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
 /// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
 /// its first and fits no better than that path's first step, at no lower a score (its exchange
-/// could at best trade its effect for that one, where that path went on from).
+/// could at best trade its effect for that one, where that path went on from). The test for the
+/// first is made after every change of the model, exchanges included.
 WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, ScreenMemo* memo,
              Diagnosis* d, const Diagnosis* earlier = nullptr) {
+  const Joined joined = [&](const LoopState& s) {
+    return earlier && joins(s, *earlier, d->steps.size(), options.ranking.significance);
+  };
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
-    if (earlier && joins(state, *earlier, d->steps.size(), options.ranking.significance)) return WalkEnd::kJoined;
+    if (joined(state)) return WalkEnd::kJoined;
     if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
     const bool may_accept = k < options.max_steps && !at_resolution(state.fit, options.ranking.resolution);
     if (!forward_step(fitted, &state, options, may_accept, memo, d)) break;
   }
-  if (earlier && joins(state, *earlier, d->steps.size(), options.ranking.significance)) return WalkEnd::kJoined;
+  if (joined(state)) return WalkEnd::kJoined;
   end_at(state, d);
   if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
-  StatesWithout made = exchange_and_step_again(fitted, &state, options, memo, d);
+  StatesWithout made = exchange_and_step_again(fitted, &state, options, memo, joined, d);
+  if (joined(state)) return WalkEnd::kJoined;
   if (pair_exchange(fitted, &state, options, &made, memo, d)) {
-    step_on(fitted, &state, options, memo, d);
-    made = exchange_and_step_again(fitted, &state, options, memo, d);
+    step_on(fitted, &state, options, memo, joined, d);
+    if (joined(state)) return WalkEnd::kJoined;
+    made = exchange_and_step_again(fitted, &state, options, memo, joined, d);
+    if (joined(state)) return WalkEnd::kJoined;
   }
   if (options.backward) backward_pass(fitted, &state, options, std::move(made), d);
   end_at(state, d);
@@ -1292,6 +1309,7 @@ void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagn
       paths.back().joined = greedy.first;
       paths.back().first = path.d.steps.front().effect.candidate.name;
       paths.back().joined_after = static_cast<int>(path.d.steps.size());
+      paths.back().joined_after_exchanges = static_cast<int>(path.d.exchanges.size());
       continue;
     }
     paths.push_back(path_of(path.d));
@@ -1377,7 +1395,9 @@ double loop_score(const Problem& data, const Diagnosis& d) {
 /// data only when their first path ends lower still than that loop's end. Other paths replace a
 /// path only by one that ends lower, so what this gives up is the other data's paths gaining more
 /// than the two ends differ by (measured: docs/design.md, "The mesh's share"). The two first paths
-/// run side by side with DiagnosisOptions::walk_side_by_side.
+/// run side by side with DiagnosisOptions::walk_side_by_side; when the one on the data as measured
+/// ends first, its other paths start while the other first path runs, and are let go should
+/// they not be wanted: the same diagnosis, without the cores waiting on one walk.
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
@@ -1398,12 +1418,9 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
     } catch (const std::system_error&) {  // no thread to be had: walked in turn below
     }
   Loop measured_loop = walk_first_path(problem, weighted_if(noise_known, problem), options, &as_measured);
-  if (corrected_beside.valid())
-    corrected_beside.get();
-  else
-    first_path_corrected();
   auto score_corrected = [&] { return corrected_loop ? loop_score(corrected.first, *d) : NAN; };
   auto score_as_measured = [&] { return loop_score(problem, as_measured); };
+  const double measured_first_score = score_as_measured();
   auto walk_corrected = [&] {  // as above: a failure leaves the data as measured
     try {
       walk_other_paths(&*corrected_loop, options, d);
@@ -1412,11 +1429,29 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
     }
   };
   auto walk_measured = [&] { walk_other_paths(&measured_loop, options, &as_measured); };
-  const bool corrected_first = score_corrected() < score_as_measured();
-  corrected_first ? walk_corrected() : walk_measured();
+  // While the corrected data's first path still runs, the measured data's other paths are walked
+  // already (the cores would otherwise wait on that one path): they are what follows below
+  // whenever the data as measured lead, or come to lead; else the first path's end is taken back.
+  std::optional<Diagnosis> measured_first_path;
+  if (corrected_beside.valid() && corrected_beside.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+    measured_first_path = as_measured;
+    walk_measured();
+  }
+  if (corrected_beside.valid())
+    corrected_beside.get();
+  else
+    first_path_corrected();
+  const bool corrected_first = score_corrected() < measured_first_score;
+  if (corrected_first)
+    walk_corrected();
+  else if (!measured_first_path)
+    walk_measured();
   // The other data's first path ends lower than the end just walked (or the corrected loop failed).
-  const bool other_leads = (score_corrected() < score_as_measured()) != corrected_first;
-  if (other_leads) corrected_first ? walk_measured() : walk_corrected();
+  const bool other_leads =
+      (score_corrected() < (corrected_first ? measured_first_score : score_as_measured())) != corrected_first;
+  if (other_leads && !corrected_first) walk_corrected();
+  if (other_leads && corrected_first && !measured_first_path) walk_measured();
+  if (!other_leads && corrected_first && measured_first_path) as_measured = std::move(*measured_first_path);
   const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
   const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop.fitted;
   if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
@@ -1636,7 +1671,11 @@ std::string paths_text(const Diagnosis& d) {
                   path.first.c_str(), path.chi2_final, path.accepted.size(), path.score);
     text += line + (kept.empty() ? std::string("nothing kept") : kept) + ")";
     if (!path.joined.empty())
-      text += ", joined the path from " + path.joined + " after " + std::to_string(path.joined_after) + " steps";
+      text += ", joined the path from " + path.joined + " after " + std::to_string(path.joined_after) + " steps" +
+              (path.joined_after_exchanges > 0
+                   ? " and " + std::to_string(path.joined_after_exchanges) +
+                         (path.joined_after_exchanges > 1 ? " exchanges" : " exchange")
+                   : "");
     if (path.no_second_step) text += ", no second step: walked no further";
     text += "\n";
   }
