@@ -163,6 +163,14 @@ TEST(ModalSolver, ASpanHoldingTheModesGivesThemAndANearbySpanBoundsThemFromAbove
   const ModalResult given = solver.solve_in_span(Kr, Mr, V, K, M);
   ASSERT_EQ(given.status, EigenStatus::Successful) << given.message;
   for (int j = 0; j < 9; ++j) EXPECT_CLOSE(given.eigenvalues[j], held.eigenvalues[j], 1e-10);
+  // Without residuals: the same pairs, every residual NaN.
+  const ModalResult bare = solver.solve_in_span(Kr, Mr, V, K, M, /*residuals=*/false);
+  ASSERT_EQ(bare.status, EigenStatus::Successful) << bare.message;
+  for (int j = 0; j < 9; ++j) {
+    EXPECT_EQ(bare.eigenvalues[j], given.eigenvalues[j]);
+    EXPECT_TRUE(std::isnan(bare.residuals[j]));
+  }
+  EXPECT_EQ(bare.modes, given.modes);
   EXPECT_THROW(solver.solve_in_span(Matrix(Kr.topRows(8)), Mr, V, K, M), std::invalid_argument);
 }
 

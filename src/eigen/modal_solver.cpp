@@ -314,7 +314,8 @@ bool split_modes(const SparseMatrix& K, const SparseMatrix& M, const Eigenpairs&
     result->eigenvalues[k] = lambda[elastic[k]];
     result->modes.col(k) = U.col(elastic[k]);
   }
-  const Matrix KU = KU_given.size() != 0 ? Matrix() : detail::symmetric_times(K, result->modes);
+  // A Ritz model (norms given) has the products it has residuals for, perhaps none.
+  const Matrix KU = KU_given.size() != 0 || norms_given ? Matrix() : detail::symmetric_times(K, result->modes);
   for (int k = 0; k < ne; ++k) {
     if (elastic[k] >= MU.cols()) {
       result->residuals[k] = NAN;  // a Ritz pair beyond those whose products were made
@@ -367,6 +368,7 @@ bool ritz_pairs(const Matrix& Kr, const Matrix& Mr, const Matrix& V, double sigm
   pairs->lambda = reduced.lambda;
   pairs->mass_norms = (reduced.vectors.transpose() * Mr * reduced.vectors).diagonal();
   pairs->vectors = V * reduced.vectors;
+  if (products == 0) return true;  // no residuals asked for
   const Matrix first = pairs->vectors.leftCols(std::min<Eigen::Index>(products, V.cols()));
   pairs->mass_vectors = detail::symmetric_times(M, first);
   pairs->stiffness_vectors = detail::symmetric_times(K, first);
@@ -491,7 +493,7 @@ ModalResult ModalSolver::solve_in_span(const SparseMatrix& K, const SparseMatrix
 }
 
 ModalResult ModalSolver::solve_in_span(const Matrix& Kr, const Matrix& Mr, const Matrix& V, const SparseMatrix& K,
-                                       const SparseMatrix& M) const {
+                                       const SparseMatrix& M, bool residuals) const {
   const auto t0 = std::chrono::steady_clock::now();
   ModalResult result;
   const int wanted = options_.num_modes + options_.max_rigid_modes;
@@ -507,7 +509,7 @@ ModalResult ModalSolver::solve_in_span(const Matrix& Kr, const Matrix& Mr, const
   Eigenpairs pairs;
   const double sigma = shift_ < 0 ? shift_ : -1e-6 * scale;
   const Matrix symmetric_Kr = 0.5 * (Kr + Kr.transpose()), symmetric_Mr = 0.5 * (Mr + Mr.transpose());
-  if (ritz_pairs(symmetric_Kr, symmetric_Mr, V, sigma, wanted, K, M, &result, &pairs) &&
+  if (ritz_pairs(symmetric_Kr, symmetric_Mr, V, sigma, residuals ? wanted : 0, K, M, &result, &pairs) &&
       split_modes(K, M, pairs, options_.rigid_tolerance * scale, options_, static_cast<int>(V.cols()), &result))
     result.status = EigenStatus::Successful;
   result.seconds_total = seconds_since(t0);
