@@ -182,6 +182,8 @@ class MODALCAL_EXPORT Objective {
   /// span from span_at(p) the reduced model agrees with the whole one near p (eigenvalues to
   /// second order in the eigenvector error), at a fraction of an evaluation's cost: for the many
   /// evaluations of a short walk from p, such as a refit, checked on the whole model at its end.
+  /// Such an evaluation's `modal.residuals` are NaN: a check on the whole model says more, and
+  /// their products with K and M would cost more than the rest of the span solve.
   /// Objectives sharing a model (the full-space driver's) share the span.
   /// \throws std::invalid_argument if the columns are not of the model's size.
   void set_span(Matrix basis);
