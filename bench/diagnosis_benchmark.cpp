@@ -89,6 +89,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -319,6 +320,28 @@ MeasuredData synthesize(const ProblemContext& ctx, const TruthModel& truth, cons
   // sensor points snapped to its nodes, in the same order), as `synth --refine` does.
   if (mesh && mesh != &ctx.problem) return synthesize_measured_data(*mesh, truth, mesh->sensors, options);
   return synthesize_measured_data(ctx.problem, truth, ctx.problem.sensors, options);
+}
+
+/// Writes a case's data (`case-SEED-data.yaml`) and a problem that reads them on the nominal
+/// problem at `nominal_path` (`case-SEED.yaml`) into `folder`, so that `fullspace_calib diagnose`
+/// (any version that reads the format) can run the case as a user would. Refuses to replace a
+/// file there: the folder is the caller's.
+void write_case(const std::string& folder, const std::string& nominal_path, std::uint64_t seed,
+                const MeasuredData& data) {
+  namespace fs = std::filesystem;
+  fs::create_directories(folder);
+  const std::string stem = "case-" + std::to_string(seed);
+  const fs::path data_path = fs::path(folder) / (stem + "-data.yaml"), problem_path = fs::path(folder) / (stem + ".yaml");
+  for (const fs::path& out : {data_path, problem_path})
+    if (fs::exists(out)) throw std::invalid_argument("--write-data: " + out.string() + " exists; not replaced");
+  write_measured_data(data_path.string(), data, {nominal_path});
+  std::ofstream problem(problem_path);
+  problem << "# Case " << seed << " of diagnosis_benchmark; `fullspace_calib diagnose " << problem_path.filename().string()
+          << "` runs it.\n"
+          << "extends: " << fs::absolute(nominal_path).string() << "\n"
+          << "name: " << stem << "\n"
+          << "measured: {file: " << data_path.filename().string() << "}\n";
+  if (!problem) throw std::runtime_error("--write-data: cannot write " + problem_path.string());
 }
 
 /// The noise-weighted chi-square of `problem` calibrated (reduced L-BFGS) from `p0`; NaN when it
@@ -1043,6 +1066,7 @@ struct Args {
   MeasurementNoise noise{0.002, 0.02, 1};
   DrawOptions draw;
   bool dry_run = false;
+  std::string write_data;  // --write-data: each case's data file and problem file in this folder
   std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
@@ -1072,6 +1096,7 @@ void usage() {
       "diagnosis_benchmark [--problem PATH]... [--cases N[,N..]] [--controls M[,M..]] [--seed-base B]\n"
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
+      "                    [--write-data DIR]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
       "                    [--calibration-starts N]\n"
@@ -1085,6 +1110,8 @@ void usage() {
       "  DiagnosisOptions::first_step_alternatives, pair_exchanges and calibration_starts (defaults:\n"
       "  diagnose's);\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
+      "  --write-data DIR: each case's data file and a problem file reading it (case-SEED.yaml, on\n"
+      "  the --problem file) in DIR, for `fullspace_calib diagnose`; with --dry-run, no diagnosis;\n"
       "  --region-levels: CandidateOptions::region_levels, the grids of block regions screened (the\n"
       "  cases are drawn from the finest grid's whatever it is); --region-size:\n"
       "  CandidateOptions::region_elements, the finest regions' size in element sizes (the cases are\n"
@@ -1202,6 +1229,7 @@ int main(int argc, char** argv) {
       else if (a == "--min-shift") args.draw.min_shift = std::stod(next());
       else if (a == "--max-shift") args.draw.max_shift = std::stod(next());
       else if (a == "--dry-run") args.dry_run = true;
+      else if (a == "--write-data") args.write_data = next();
       else if (a == "--case-list")
         for (double v : bench::parse_list(next())) args.only_cases.push_back(static_cast<int>(v));
       else if (a == "--only") {
@@ -1346,6 +1374,7 @@ int main(int argc, char** argv) {
         problem.synthetic.reset();
         problem.measurement_noise = data.noise;
         problem.synthetic_truth = data.truth;
+        if (!args.write_data.empty()) write_case(args.write_data, ctx.path, c.seed, data);
         if (!args.dry_run) {
           DiagnosisOptions options;
           options.ranking.significance = args.significance;
