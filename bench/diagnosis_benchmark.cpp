@@ -341,6 +341,7 @@ void write_case(const std::string& folder, const std::string& nominal_path, std:
           << "extends: " << fs::absolute(nominal_path).string() << "\n"
           << "name: " << stem << "\n"
           << "measured: {file: " << data_path.filename().string() << "}\n";
+  problem.close();  // a failed write shows only once the buffer is flushed
   if (!problem) throw std::runtime_error("--write-data: cannot write " + problem_path.string());
 }
 
