@@ -24,6 +24,9 @@ shift 2
 for bin in "$reference" "$build"; do
   [ -x "$bin" ] || { echo "diagnosis_time_ratio: $bin is not an executable" >&2; exit 2; }
 done
+# Absolute, since each diagnosis runs in its case's folder (the case's files are relative to it).
+reference=$(cd "$(dirname "$reference")" && pwd)/$(basename "$reference")
+build=$(cd "$(dirname "$build")" && pwd)/$(basename "$build")
 here=$(cd "$(dirname "$0")/.." && pwd)
 cases=()
 for c in base-flexibility control joint-rotation soft-foam stiff-post top-mass; do cases+=("$here/problems/lfu-hidden/$c.yaml"); done
