@@ -1076,6 +1076,7 @@ struct Args {
   int neighbour_refits = RankingOptions().neighbour_refits;
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
+  bool alternatives_after_consistent_end = DiagnosisOptions().alternatives_after_consistent_end;
   int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   int region_levels = CandidateOptions().region_levels;
@@ -1100,7 +1101,7 @@ void usage() {
       "                    [--write-data DIR]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
-      "                    [--calibration-starts N]\n"
+      "                    [--calibration-starts N] [--alternatives-after-consistent-end 0|1]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
       "                    [--no-region-stagger]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
@@ -1109,7 +1110,8 @@ void usage() {
       "  RankingOptions::refits, place_refits, kind_refits, neighbour_refits, neighbour_rounds and\n"
       "  equal_kind_prior; --first-step-alternatives, --pair-exchanges, --calibration-starts:\n"
       "  DiagnosisOptions::first_step_alternatives, pair_exchanges and calibration_starts (defaults:\n"
-      "  diagnose's);\n"
+      "  diagnose's); --alternatives-after-consistent-end: DiagnosisOptions::\n"
+      "  alternatives_after_consistent_end;\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --write-data DIR: each case's data file and a problem file reading it (case-SEED.yaml, on\n"
       "  the --problem file) in DIR, for `fullspace_calib diagnose`; with --dry-run, no diagnosis;\n"
@@ -1203,6 +1205,7 @@ int main(int argc, char** argv) {
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
       else if (a == "--neighbour-rounds") args.neighbour_rounds = std::stoi(next());
       else if (a == "--first-step-alternatives") args.first_step_alternatives = std::stoi(next());
+      else if (a == "--alternatives-after-consistent-end") args.alternatives_after_consistent_end = std::stoi(next()) != 0;
       else if (a == "--pair-exchanges") args.pair_exchanges = std::stoi(next());
       else if (a == "--calibration-starts") args.calibration_starts = std::stoi(next());
       else if (a == "--no-region-stagger") args.region_stagger = false;
@@ -1265,9 +1268,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps%s, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.alternatives_after_consistent_end ? "" : " (only after an end above the noise)", args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1385,6 +1388,7 @@ int main(int argc, char** argv) {
           options.ranking.neighbour_refits = args.neighbour_refits;
           options.ranking.neighbour_rounds = args.neighbour_rounds;
           options.first_step_alternatives = args.first_step_alternatives;
+          options.alternatives_after_consistent_end = args.alternatives_after_consistent_end;
           options.pair_exchanges = args.pair_exchanges;
           options.calibration_starts = args.calibration_starts;
           options.candidates.region_levels = args.region_levels;
@@ -1481,9 +1485,13 @@ int main(int argc, char** argv) {
                                     {"replaced_score", x.replaced_score}});
           for (const DroppedEffect& x : d.dropped)
             o.steps_json.push_back({{"dropped", x.name}, {"chi2_increase", x.chi2_increase}, {"on_bound", x.on_bound}});
-          for (const DiagnosisPath& x : d.paths)
+          for (const DiagnosisPath& x : d.paths) {
+            const int rank = rank_of(d.ranking, x.first);  // its first effect in the first screen
             o.steps_json.push_back({{"path", x.first}, {"score", x.score}, {"kept", x.kept}, {"joined_after", x.joined_after},
-                                    {"no_second_step", x.no_second_step}});
+                                    {"no_second_step", x.no_second_step}, {"first_rank", rank},
+                                    {"first_statistic", rank > 0 ? d.ranking.effects[rank - 1].statistic : NAN},
+                                    {"first_score", rank > 0 ? d.ranking.effects[rank - 1].score() : NAN}});
+          }
         }
       } catch (const std::exception& e) {
         c.error = e.what();

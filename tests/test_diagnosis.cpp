@@ -1303,6 +1303,7 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
   const Problem hidden = WithHiddenEffect({"point_mass@[1,0,0]:mass=0.05", "point_mass@[1,1,1.5]:mass=0.05"}, 54);
   DiagnosisOptions options;
   options.exchange = false;
+  options.alternatives_after_consistent_end = true;
   options.first_step_alternatives = 0;
   const Diagnosis greedy = diagnose(hidden, hidden.initial_values(), options);
   options.first_step_alternatives = 2;
@@ -1408,7 +1409,9 @@ TEST(Diagnosis, APathThatReachesTheGreedyPathsEffectsIsWalkedNoFurther) {
   // reaches another's effects stops there and carries that path's end, the report says so, and
   // the diagnosis keeps the two truth effects.
   const Problem hidden = WithHiddenEffect({"pad.stiffness_scale=1.3", "top.mass_scale=1.08"}, 11);
-  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  DiagnosisOptions options;
+  options.alternatives_after_consistent_end = true;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
   const std::string report = format_diagnosis(hidden, d);
   std::vector<std::string> accepted = d.accepted();
   std::sort(accepted.begin(), accepted.end());
@@ -1443,13 +1446,39 @@ TEST(Diagnosis, EveryJoinedPathEndsWhereThePathItJoinedEnded) {
   // that stops as joined records the end of the path it joined (its effects and chi-square), is
   // not the one kept, and the diagnosis keeps the two effects of the truth.
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
-  const Diagnosis d = diagnose(hidden, hidden.initial_values());
+  DiagnosisOptions options;
+  options.alternatives_after_consistent_end = true;
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
   const std::string report = format_diagnosis(hidden, d);
   ASSERT_TRUE(d.started_with.empty());
+  ASSERT_GE(d.paths.size(), 2u) << "precondition: other paths walked\n" << report;
   ExpectEveryJoinedPathEndsWhereThePathItJoinedEnded(d, report);
   std::vector<std::string> accepted = d.accepted();
   std::sort(accepted.begin(), accepted.end());
   EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+}
+
+TEST(Diagnosis, AFirstPathEndingConsistentWithTheNoiseIsWalkedAgainOnlyWhenAsked) {
+  // The two effects of TheStepwiseLoopFindsTwoEffectsInTwoSteps: the first path takes both and
+  // ends with a residual the noise explains. Only with alternatives_after_consistent_end is the
+  // loop walked again from the first screen's next-best effects; either way it keeps the two.
+  const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
+  DiagnosisOptions options;
+  options.alternatives_after_consistent_end = false;
+  const Diagnosis first_path_only = diagnose(hidden, hidden.initial_values(), options);
+  const std::string report = format_diagnosis(hidden, first_path_only);
+  ASSERT_EQ(first_path_only.steps.size(), 2u) << "precondition: two steps\n" << report;
+  ASSERT_TRUE(first_path_only.final_fit.test && !first_path_only.final_fit.test->model_form_error)
+      << "precondition: consistent with the noise\n" << report;
+  EXPECT_TRUE(first_path_only.paths.empty()) << report;
+  options.alternatives_after_consistent_end = true;
+  const Diagnosis walked_again = diagnose(hidden, hidden.initial_values(), options);
+  EXPECT_GE(walked_again.paths.size(), 2u) << format_diagnosis(hidden, walked_again);
+  std::vector<std::string> a = first_path_only.accepted(), b = walked_again.accepted();
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  EXPECT_EQ(a, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+  EXPECT_EQ(b, a);
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
@@ -1604,6 +1633,7 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
 Diagnosis ExpectTheSameSideBySide(const Problem& problem, const Problem* finer) {
   DiagnosisOptions in_turn;
   in_turn.finer_mesh = finer;
+  in_turn.alternatives_after_consistent_end = true;  // other paths to walk side by side
   DiagnosisOptions side_by_side = in_turn;
   side_by_side.walk_side_by_side = true;
   side_by_side.ranking.task_map = run_in_threads(2);

@@ -122,6 +122,11 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// and takes again the greedy path's screens, not another alternative's. Each costs up to a
   /// loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
+  /// Walk those other paths also when the first path took two or more steps and ends with a
+  /// residual consistent with the noise. Off, they are walked only when the first path ends with a
+  /// residual larger than the noise: there the data still hold what its effects do not explain,
+  /// the sign that its first step may stand in for several effects.
+  bool alternatives_after_consistent_end = true;
   /// When the first calibration's residual is more than the noise (or, without a stated noise,
   /// the data's resolution), it is run again from this many further starts spread over the
   /// parameters' bounds (spread_start()), through ranking.task_map, and the lowest end is kept. A

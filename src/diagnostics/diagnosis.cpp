@@ -1296,7 +1296,8 @@ std::vector<OtherPath> walk_each(const Problem& fitted, const LoopState& start, 
 /// path before it, the earlier path.
 void walk_other_paths(const Problem& fitted, const LoopState& start, const Diagnosis& before_the_loop,
                       const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d) {
-  if (d->steps.empty() || !d->final_fit.test || (d->steps.size() < 2 && consistent_with_noise(d->final_fit))) return;
+  const bool any_end = d->steps.size() >= 2 && options.alternatives_after_consistent_end;
+  if (d->steps.empty() || !d->final_fit.test || (!any_end && consistent_with_noise(d->final_fit))) return;
   const std::vector<size_t> others = other_first_steps(d->ranking, options.first_step_alternatives);
   if (others.empty()) return;
   std::vector<OtherPath> walked = walk_each(fitted, start, before_the_loop, others, options, *memo, *d);
@@ -1360,8 +1361,9 @@ Loop walk_first_path(const Problem& problem, const Problem& fitted, const Diagno
   return loop;
 }
 
-/// The loop's other paths: when its first path took two or more steps or ended with a residual
-/// larger than the noise, the loop is walked again from each of the first ranking's next-best
+/// The loop's other paths: when its first path took two or more steps
+/// (DiagnosisOptions::alternatives_after_consistent_end) or ended with a residual larger than the
+/// noise, the loop is walked again from each of the first ranking's next-best
 /// effects (walk_other_paths): with several effects at once the best single effect may stand in
 /// for them together, and no later step or exchange then leaves it.
 void walk_other_paths(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
