@@ -477,6 +477,26 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
 // The loop started from an enabled effect that releases a support (which, once released, could
 // not be described again on the changed model); the same effect added again is bad input; and
 // with no effect kept, --write-problem still writes a problem that calibrate loads.
+// The README's two-effect walk-through: the first path takes both effects and ends consistent with
+// the noise, so the loop is walked from no other first step unless
+// --alternatives-after-consistent-end asks for it; either way it keeps two effects.
+TEST(Cli, DiagnoseWalksOtherPathsAfterAConsistentEndOnlyWhenAsked) {
+  const std::string dir =
+      std::filesystem::path(testing::WriteTempFile("consistent_end_marker.txt", "")).parent_path().string();
+  const std::string problem = testing::SourcePath("problems/portal-frame/two-effects.yaml");
+  for (const bool asked : {false, true}) {
+    const std::string json = dir + (asked ? "/walked_again.json" : "/first_path.json");
+    const CliRun run = RunCli("diagnose " + problem + " --quiet" +
+                              (asked ? " --alternatives-after-consistent-end" : "") + " --json " + json);
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const nlohmann::json d = nlohmann::json::parse(ReadFile(json));
+    ASSERT_EQ(d["accepted"].size(), 2u) << d["accepted"].dump();
+    EXPECT_EQ(d["residual_final"]["model_form_error"], false) << d["residual_final"].dump();
+    ASSERT_TRUE(d["paths"].is_array()) << d.dump();
+    EXPECT_EQ(d["paths"].empty(), !asked) << d["paths"].dump();
+  }
+}
+
 // A bundled synthetic problem: noise-free data of the right model, no noise stated. The JSON
 // says the fit meets the data to their resolution, and where the calibration started.
 TEST(Cli, DiagnoseOfNoiseFreeDataOfTheRightModelAsksForNothing) {

@@ -111,9 +111,10 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// The backward pass: drop effects (accepted ones and the problem's own) that are no longer
   /// significant at the stated level once the others are in the model.
   bool backward = true;
-  /// When the loop took two or more steps or ends with a residual larger than the noise, walk it
-  /// again from each of the first step's next-best significant refits (at most this many, none a
-  /// neighbour of the first or of another, nor mass at the place of one as a point mass or a
+  /// When the loop ends with a residual larger than the noise (or, with
+  /// alternatives_after_consistent_end, took two or more steps), walk it again from each of the
+  /// first step's next-best significant refits (at most this many, none a neighbour of the first
+  /// or of another, nor mass at the place of one as a point mass or a
   /// region's mass scale: the same hypothesis), and keep the path that ends lowest in chi-square plus
   /// the first step's critical value and the effect's kind penalty (RankedEffect::kind_penalty)
   /// per kept effect (Diagnosis::paths). With several effects at once the best single effect may
@@ -123,10 +124,12 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// loop. Range: >= 0 (0: the greedy path only).
   int first_step_alternatives = 2;
   /// Walk those other paths also when the first path took two or more steps and ends with a
-  /// residual consistent with the noise. Off, they are walked only when the first path ends with a
-  /// residual larger than the noise: there the data still hold what its effects do not explain,
-  /// the sign that its first step may stand in for several effects.
-  bool alternatives_after_consistent_end = true;
+  /// residual consistent with the noise. Off by default: they are walked where the first path ends
+  /// with a residual larger than the noise, where the data still hold what its effects do not
+  /// explain (as the pair exchanges are). After a consistent end they took 40-50 % of a
+  /// multi-effect diagnosis's time and changed 6 of 26 multi-effect answers on the tuning sets,
+  /// one of them from wrong to right (docs/benchmarks.md, round forty-two).
+  bool alternatives_after_consistent_end = false;
   /// When the first calibration's residual is more than the noise (or, without a stated noise,
   /// the data's resolution), it is run again from this many further starts spread over the
   /// parameters' bounds (spread_start()), through ranking.task_map, and the lowest end is kept. A

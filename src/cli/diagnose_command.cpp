@@ -38,7 +38,7 @@ struct DiagnoseArgs {
   int max_iterations = DiagnosisOptions().calibration.max_iterations;
   int max_steps = DiagnosisOptions().max_steps;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
-  bool alternatives_only_above_noise = !DiagnosisOptions().alternatives_after_consistent_end;
+  bool alternatives_after_consistent_end = DiagnosisOptions().alternatives_after_consistent_end;
   int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   double mesh_check = 1.5;
@@ -430,7 +430,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.ranking.resolution = args.resolution;
   options.max_steps = args.max_steps;
   options.first_step_alternatives = args.first_step_alternatives;
-  options.alternatives_after_consistent_end = !args.alternatives_only_above_noise;
+  options.alternatives_after_consistent_end = args.alternatives_after_consistent_end;
   options.pair_exchanges = args.pair_exchanges;
   options.calibration_starts = args.calibration_starts;
   options.candidates.region_elements = args.region_size;
@@ -563,14 +563,14 @@ void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
                 "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
                 "refits in threads: slower, and less peak memory (LFU 0.7: 0.7 GB against 1.0)");
   cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
-                  "when the loop takes two or more steps or ends above the noise, walk it again from this many of "
+                  "when the loop ends above the noise, walk it again from this many of "
                   "the first step's next-best effects and keep the path that ends lowest (default " +
                       std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
       ->check(non_negative_number());
-  cmd->add_flag("--alternatives-only-above-noise", args->alternatives_only_above_noise,
-                "walk those next-best effects only when the first path ends above the noise, not after two or "
-                "more steps that leave the residual consistent with it: on multi-effect cases about half the "
-                "time, and now and then a worse answer");
+  cmd->add_flag("--alternatives-after-consistent-end", args->alternatives_after_consistent_end,
+                "walk those next-best effects also when the first path took two or more steps and ends "
+                "consistent with the noise: now and then a better answer with several effects, in about twice "
+                "the time");
   cmd->add_option("--pair-exchanges", args->pair_exchanges,
                   "when the loop ends above the noise, try two effects for each accepted one: this many of the best "
                   "in its place, each followed by the best step from there (default " +

@@ -1361,9 +1361,9 @@ Loop walk_first_path(const Problem& problem, const Problem& fitted, const Diagno
   return loop;
 }
 
-/// The loop's other paths: when its first path took two or more steps
-/// (DiagnosisOptions::alternatives_after_consistent_end) or ended with a residual larger than the
-/// noise, the loop is walked again from each of the first ranking's next-best
+/// The loop's other paths: when its first path ended with a residual larger than the noise (or
+/// took two or more steps, DiagnosisOptions::alternatives_after_consistent_end), the loop is walked
+/// again from each of the first ranking's next-best
 /// effects (walk_other_paths): with several effects at once the best single effect may stand in
 /// for them together, and no later step or exchange then leaves it.
 void walk_other_paths(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
