@@ -474,9 +474,6 @@ TEST(Cli, DiagnoseFindsTheHiddenEffectAndCalibrateAddsIt) {
   EXPECT_NE(run.output.find("no property 'nosuch'"), std::string::npos) << run.output;
 }
 
-// The loop started from an enabled effect that releases a support (which, once released, could
-// not be described again on the changed model); the same effect added again is bad input; and
-// with no effect kept, --write-problem still writes a problem that calibrate loads.
 // The README's two-effect walk-through: the first path takes both effects and ends consistent with
 // the noise, so the loop is walked from no other first step unless
 // --alternatives-after-consistent-end asks for it; either way it keeps two effects.
@@ -633,6 +630,9 @@ TEST(Cli, DiagnoseWithEveryParameterHeldOnABoundRunsToAVerdict) {
   EXPECT_NE(run.output.find("on a bound of the range you gave"), std::string::npos) << run.output;
 }
 
+// The loop started from an enabled effect that releases a support (which, once released, could
+// not be described again on the changed model); the same effect added again is bad input; and
+// with no effect kept, --write-problem still writes a problem that calibrate loads.
 TEST(Cli, DiagnoseStartsFromAnEnabledSupportAndWritesAProblemWithNoEffectKept) {
   const std::string study = testing::WriteTipMassStudy();
   const std::string dir = std::filesystem::path(study).parent_path().string();
