@@ -112,6 +112,22 @@ Diagnosis DiagnoseWithMeshCheck(const Problem& problem, std::string* report) {
   return d;
 }
 
+/// The effects `d` kept, sorted: the same set whatever order the steps took them in.
+std::vector<std::string> SortedAccepted(const Diagnosis& d) {
+  std::vector<std::string> accepted = d.accepted();
+  std::sort(accepted.begin(), accepted.end());
+  return accepted;
+}
+
+/// The default options, but the loop walked again from the first step's next-best effects after
+/// any first path of two or more steps, also one that ends consistent with the noise: what the
+/// tests of the paths' mechanism need on cases whose first path ends so.
+DiagnosisOptions WalkingOtherPathsAfterAnyEnd() {
+  DiagnosisOptions options;
+  options.alternatives_after_consistent_end = true;
+  return options;
+}
+
 const EffectCandidate* Find(const std::vector<EffectCandidate>& candidates, const std::string& name) {
   const auto it = std::find_if(candidates.begin(), candidates.end(), [&](const auto& c) { return c.name == name; });
   return it == candidates.end() ? nullptr : &*it;
@@ -851,9 +867,7 @@ TEST(Diagnosis, TheStepwiseLoopFindsTwoEffectsInTwoSteps) {
   const Diagnosis d = diagnose(hidden, hidden.initial_values());
   const std::string report = format_diagnosis(hidden, d);
   ASSERT_EQ(d.steps.size(), 2u) << report;
-  std::vector<std::string> accepted = d.accepted();
-  std::sort(accepted.begin(), accepted.end());
-  EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+  EXPECT_EQ(SortedAccepted(d), (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
   EXPECT_TRUE(d.model_form_error);
   // The chi-square falls at each step, and the step's "before" is the last step's "after".
   EXPECT_LT(d.steps[0].effect.chi2_after, d.steps[0].chi2_before);
@@ -1301,9 +1315,8 @@ TEST(Diagnosis, TheLoopWalkedFromTheFirstStepsAlternativesKeepsThePathThatEndsLo
   // the kept path is the one that ends lowest in chi-square plus a critical value and its kind's
   // prior penalty per effect.
   const Problem hidden = WithHiddenEffect({"point_mass@[1,0,0]:mass=0.05", "point_mass@[1,1,1.5]:mass=0.05"}, 54);
-  DiagnosisOptions options;
+  DiagnosisOptions options = WalkingOtherPathsAfterAnyEnd();
   options.exchange = false;
-  options.alternatives_after_consistent_end = true;
   options.first_step_alternatives = 0;
   const Diagnosis greedy = diagnose(hidden, hidden.initial_values(), options);
   options.first_step_alternatives = 2;
@@ -1409,13 +1422,9 @@ TEST(Diagnosis, APathThatReachesTheGreedyPathsEffectsIsWalkedNoFurther) {
   // reaches another's effects stops there and carries that path's end, the report says so, and
   // the diagnosis keeps the two truth effects.
   const Problem hidden = WithHiddenEffect({"pad.stiffness_scale=1.3", "top.mass_scale=1.08"}, 11);
-  DiagnosisOptions options;
-  options.alternatives_after_consistent_end = true;
-  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), WalkingOtherPathsAfterAnyEnd());
   const std::string report = format_diagnosis(hidden, d);
-  std::vector<std::string> accepted = d.accepted();
-  std::sort(accepted.begin(), accepted.end());
-  EXPECT_EQ(accepted, (std::vector<std::string>{"pad.stiffness_scale", "top.mass_scale"})) << report;
+  EXPECT_EQ(SortedAccepted(d), (std::vector<std::string>{"pad.stiffness_scale", "top.mass_scale"})) << report;
   ExpectEveryJoinedPathEndsWhereThePathItJoinedEnded(d, report);
   const bool any_joined =
       std::any_of(d.paths.begin(), d.paths.end(), [](const DiagnosisPath& p) { return !p.joined.empty(); });
@@ -1446,16 +1455,12 @@ TEST(Diagnosis, EveryJoinedPathEndsWhereThePathItJoinedEnded) {
   // that stops as joined records the end of the path it joined (its effects and chi-square), is
   // not the one kept, and the diagnosis keeps the two effects of the truth.
   const Problem hidden = WithHiddenEffect({"top.mass_scale=1.1", "j.krx=20"}, 11);
-  DiagnosisOptions options;
-  options.alternatives_after_consistent_end = true;
-  const Diagnosis d = diagnose(hidden, hidden.initial_values(), options);
+  const Diagnosis d = diagnose(hidden, hidden.initial_values(), WalkingOtherPathsAfterAnyEnd());
   const std::string report = format_diagnosis(hidden, d);
   ASSERT_TRUE(d.started_with.empty());
   ASSERT_GE(d.paths.size(), 2u) << "precondition: other paths walked\n" << report;
   ExpectEveryJoinedPathEndsWhereThePathItJoinedEnded(d, report);
-  std::vector<std::string> accepted = d.accepted();
-  std::sort(accepted.begin(), accepted.end());
-  EXPECT_EQ(accepted, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+  EXPECT_EQ(SortedAccepted(d), (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
 }
 
 TEST(Diagnosis, AFirstPathEndingConsistentWithTheNoiseIsWalkedAgainOnlyWhenAsked) {
@@ -1471,14 +1476,10 @@ TEST(Diagnosis, AFirstPathEndingConsistentWithTheNoiseIsWalkedAgainOnlyWhenAsked
   ASSERT_TRUE(first_path_only.final_fit.test && !first_path_only.final_fit.test->model_form_error)
       << "precondition: consistent with the noise\n" << report;
   EXPECT_TRUE(first_path_only.paths.empty()) << report;
-  options.alternatives_after_consistent_end = true;
-  const Diagnosis walked_again = diagnose(hidden, hidden.initial_values(), options);
+  const Diagnosis walked_again = diagnose(hidden, hidden.initial_values(), WalkingOtherPathsAfterAnyEnd());
   EXPECT_GE(walked_again.paths.size(), 2u) << format_diagnosis(hidden, walked_again);
-  std::vector<std::string> a = first_path_only.accepted(), b = walked_again.accepted();
-  std::sort(a.begin(), a.end());
-  std::sort(b.begin(), b.end());
-  EXPECT_EQ(a, (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
-  EXPECT_EQ(b, a);
+  EXPECT_EQ(SortedAccepted(first_path_only), (std::vector<std::string>{"j.krx", "top.mass_scale"})) << report;
+  EXPECT_EQ(SortedAccepted(walked_again), SortedAccepted(first_path_only));
 }
 
 TEST(Diagnosis, TheBackwardPassDropsAnEffectTheOthersMakeRedundant) {
@@ -1631,9 +1632,8 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
 /// walked side by side (DiagnosisOptions::walk_side_by_side, two refits at a time), expected the
 /// same: every walk side by side shares nothing but what was there before it. Returns the second.
 Diagnosis ExpectTheSameSideBySide(const Problem& problem, const Problem* finer) {
-  DiagnosisOptions in_turn;
+  DiagnosisOptions in_turn = WalkingOtherPathsAfterAnyEnd();  // other paths to walk side by side
   in_turn.finer_mesh = finer;
-  in_turn.alternatives_after_consistent_end = true;  // other paths to walk side by side
   DiagnosisOptions side_by_side = in_turn;
   side_by_side.walk_side_by_side = true;
   side_by_side.ranking.task_map = run_in_threads(2);
