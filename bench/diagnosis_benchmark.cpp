@@ -1054,6 +1054,7 @@ struct Outcome {
   double wall = 0, cpu = 0, case_wall = 0, case_cpu = 0;
   std::string recommendation;
   json steps_json = json::array();
+  json mesh_check;  // the discretization estimate's verdict and the two loops' scores; null without
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1077,6 +1078,7 @@ struct Args {
   int neighbour_rounds = RankingOptions().neighbour_rounds;
   int first_step_alternatives = DiagnosisOptions().first_step_alternatives;
   bool alternatives_after_consistent_end = DiagnosisOptions().alternatives_after_consistent_end;
+  double other_data_margin = DiagnosisOptions().other_data_margin;
   int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   int region_levels = CandidateOptions().region_levels;
@@ -1101,7 +1103,7 @@ void usage() {
       "                    [--write-data DIR]\n"
       "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
-      "                    [--calibration-starts N] [--alternatives-after-consistent-end 0|1]\n"
+      "                    [--calibration-starts N] [--alternatives-after-consistent-end 0|1] [--other-data-margin X]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
       "                    [--no-region-stagger]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
@@ -1111,7 +1113,7 @@ void usage() {
       "  equal_kind_prior; --first-step-alternatives, --pair-exchanges, --calibration-starts:\n"
       "  DiagnosisOptions::first_step_alternatives, pair_exchanges and calibration_starts (defaults:\n"
       "  diagnose's); --alternatives-after-consistent-end: DiagnosisOptions::\n"
-      "  alternatives_after_consistent_end;\n"
+      "  alternatives_after_consistent_end; --other-data-margin: DiagnosisOptions::other_data_margin;\n"
       "  --print-diagnosis: each case's diagnose report on stderr;\n"
       "  --write-data DIR: each case's data file and a problem file reading it (case-SEED.yaml, on\n"
       "  the --problem file) in DIR, for `fullspace_calib diagnose`; with --dry-run, no diagnosis;\n"
@@ -1206,6 +1208,7 @@ int main(int argc, char** argv) {
       else if (a == "--neighbour-rounds") args.neighbour_rounds = std::stoi(next());
       else if (a == "--first-step-alternatives") args.first_step_alternatives = std::stoi(next());
       else if (a == "--alternatives-after-consistent-end") args.alternatives_after_consistent_end = std::stoi(next()) != 0;
+      else if (a == "--other-data-margin") args.other_data_margin = std::stod(next());
       else if (a == "--pair-exchanges") args.pair_exchanges = std::stoi(next());
       else if (a == "--calibration-starts") args.calibration_starts = std::stoi(next());
       else if (a == "--no-region-stagger") args.region_stagger = false;
@@ -1268,10 +1271,10 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps%s, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps%s, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, other data's margin %g, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
               args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.alternatives_after_consistent_end ? "" : " (only after an end above the noise)", args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
-              args.stop_when_consistent ? ", stop when consistent" : "", args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
+              args.stop_when_consistent ? ", stop when consistent" : "", args.other_data_margin, args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
               "true parameters against noise-free truth data, J its Jacobian in the parameters (what calibration absorbs, "
@@ -1389,6 +1392,7 @@ int main(int argc, char** argv) {
           options.ranking.neighbour_rounds = args.neighbour_rounds;
           options.first_step_alternatives = args.first_step_alternatives;
           options.alternatives_after_consistent_end = args.alternatives_after_consistent_end;
+          options.other_data_margin = args.other_data_margin;
           options.pair_exchanges = args.pair_exchanges;
           options.calibration_starts = args.calibration_starts;
           options.candidates.region_levels = args.region_levels;
@@ -1416,6 +1420,15 @@ int main(int argc, char** argv) {
           o.p_final = d.final_fit.test ? d.final_fit.test->p_value : NAN;
           o.chi2_final = d.final_fit.statistic;
           o.recommendation = d.recommendation;
+          if (d.discretization) {
+            const DiscretizationEstimate& e = *d.discretization;
+            auto number = [](double v) { return std::isfinite(v) ? json(v) : json(); };
+            o.mesh_check = {{"significant", e.significant}, {"corrected", e.corrected},
+                            {"score_corrected", number(e.score_corrected)},
+                            {"score_as_measured", number(e.score_as_measured)},
+                            {"other_data_first_path_only", e.other_data_first_path_only},
+                            {"other_data_forward_steps_only", e.other_data_forward_steps_only}};
+          }
           const int np = static_cast<int>(problem.parameters.size());
           std::vector<std::pair<const EffectCandidate*, double>> kept;
           const std::vector<std::string> accepted = d.accepted();
@@ -1553,6 +1566,7 @@ int main(int argc, char** argv) {
         cj["chi2_truth_model"] = std::isfinite(o.chi2_truth) ? json(o.chi2_truth) : json();
         cj["value_error"] = o.value_error;
         cj["recommendation"] = o.recommendation;
+        cj["mesh_check"] = o.mesh_check;
         cj["diagnosis_wall_s"] = o.wall;
         cj["diagnosis_cpu_s"] = o.cpu;
       }

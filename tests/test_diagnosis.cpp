@@ -1617,15 +1617,58 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_FALSE(d.discretization->corrected) << report;
   EXPECT_LT(d.discretization->score_as_measured, d.discretization->score_corrected) << report;
-  // The corrected data's first path took three steps and ended above the loop on the data as
-  // measured: its other paths were not walked, and the report says so.
+  // The corrected data's forward steps took three effects and ended more than a step's critical
+  // value above those on the data as measured: neither the rest of that first path nor its other
+  // paths were walked, and the report says so.
   EXPECT_TRUE(d.discretization->other_data_first_path_only) << report;
-  EXPECT_NE(report.find("the loop on the corrected data walked its first path only"), std::string::npos) << report;
+  EXPECT_TRUE(d.discretization->other_data_forward_steps_only) << report;
+  EXPECT_NE(report.find("the loop on the corrected data took its first path's forward steps only"), std::string::npos)
+      << report;
   EXPECT_EQ(d.accepted(), std::vector<std::string>{"pad.stiffness_scale"}) << report;
   ASSERT_TRUE(d.final_fit.test);
   EXPECT_FALSE(d.final_fit.test->model_form_error) << report;
   EXPECT_EQ(d.recommendation.find("Refine the mesh first"), std::string::npos) << d.recommendation;
   EXPECT_NE(report.find("the diagnosis below is of the data as measured"), std::string::npos) << report;
+}
+
+TEST(Diagnosis, TheOtherDataFinishTheirFirstPathOnlyWhenTheirForwardStepsEndWithinTheMargin) {
+  // The case above: the data corrected for the mesh need more effects than the pad the data as
+  // measured need. With a margin of zero the corrected data take their first path's forward steps
+  // only (no exchange, no backward pass); with an unbounded one they finish it, as the loop did
+  // before the margin. The exchange and the backward pass only lower a path's score, and the data
+  // as measured lead either way, so both keep the same effects at the same end.
+  const Problem problem = WithHiddenEffect({"pad.stiffness_scale=0.5"}, 3);
+  const Problem finer = FinerAssembly(problem);
+  DiagnosisOptions forward_only;
+  forward_only.finer_mesh = &finer;
+  forward_only.other_data_margin = 0;
+  DiagnosisOptions finished = forward_only;
+  finished.other_data_margin = std::numeric_limits<double>::infinity();
+  std::string error;
+  EXPECT_TRUE(finished.IsValid(&error)) << error;
+  for (double bad : {-1.0, std::numeric_limits<double>::quiet_NaN()}) {
+    DiagnosisOptions invalid;
+    invalid.other_data_margin = bad;
+    EXPECT_FALSE(invalid.IsValid(&error)) << bad;
+    EXPECT_NE(error.find("other_data_margin"), std::string::npos) << error;
+  }
+  const Diagnosis a = diagnose(problem, problem.initial_values(), forward_only);
+  const Diagnosis b = diagnose(problem, problem.initial_values(), finished);
+  const std::string report_a = format_diagnosis(problem, a), report_b = format_diagnosis(problem, b);
+  const std::string report = report_a + "\n" + report_b;
+  ASSERT_TRUE(a.discretization && b.discretization) << report;
+  ASSERT_TRUE(a.discretization->significant) << report;
+  EXPECT_TRUE(a.discretization->other_data_forward_steps_only) << report;
+  EXPECT_NE(report_a.find("took its first path's forward steps only"), std::string::npos) << report_a;
+  EXPECT_FALSE(b.discretization->other_data_forward_steps_only) << report;
+  EXPECT_TRUE(b.discretization->other_data_first_path_only) << report;
+  EXPECT_NE(report_b.find("the loop on the corrected data walked its first path only"), std::string::npos) << report_b;
+  EXPECT_FALSE(a.discretization->corrected) << report;
+  EXPECT_FALSE(b.discretization->corrected) << report;
+  EXPECT_EQ(SortedAccepted(a), SortedAccepted(b)) << report;
+  const double tolerance = 1e-6 * std::max(1.0, b.discretization->score_as_measured);
+  EXPECT_NEAR(a.discretization->score_as_measured, b.discretization->score_as_measured, tolerance) << report;
+  EXPECT_GE(a.discretization->score_corrected, b.discretization->score_corrected - tolerance) << report;
 }
 
 /// The diagnosis of `problem` (with `finer` for the mesh check, when not null) walked in turn and
@@ -1646,6 +1689,8 @@ Diagnosis ExpectTheSameSideBySide(const Problem& problem, const Problem* finer) 
   if (a.discretization && b.discretization) {
     EXPECT_EQ(b.discretization->corrected, a.discretization->corrected) << report;
     EXPECT_EQ(b.discretization->other_data_first_path_only, a.discretization->other_data_first_path_only) << report;
+    EXPECT_EQ(b.discretization->other_data_forward_steps_only, a.discretization->other_data_forward_steps_only)
+        << report;
     EXPECT_TRUE(close(b.discretization->score_corrected, a.discretization->score_corrected)) << report;
     EXPECT_TRUE(close(b.discretization->score_as_measured, a.discretization->score_as_measured)) << report;
   }

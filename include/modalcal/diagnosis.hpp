@@ -130,6 +130,17 @@ struct MODALCAL_EXPORT DiagnosisOptions {
   /// multi-effect diagnosis's time and changed 6 of 26 multi-effect answers on the tuning sets,
   /// one of them from wrong to right (docs/benchmarks.md, round forty-two).
   bool alternatives_after_consistent_end = false;
+  /// When the mesh check is significant and the loop runs on the data corrected for the mesh and
+  /// on the data as measured (correct_for_discretization), both take their first path's forward
+  /// steps; the exchange and the backward pass follow for the data whose steps end lower in score
+  /// (DiscretizationEstimate::score_corrected), and for the other data only when theirs end within
+  /// this many of the first step's critical value of those. The exchange and backward passes
+  /// only lower a path's score, so data whose forward steps end far above the others' rarely come
+  /// to lead, and on a multi-effect loser those passes (a screen per accepted effect, then steps
+  /// again) cost much: on LFU case 27502, half the diagnosis, for the same answer (docs/
+  /// benchmarks.md, round forty-three). Range: >= 0 (infinity: always both; 0: only the lower
+  /// data's).
+  double other_data_margin = 1.0;
   /// When the first calibration's residual is more than the noise (or, without a stated noise,
   /// the data's resolution), it is run again from this many further starts spread over the
   /// parameters' bounds (spread_start()), through ranking.task_map, and the lowest end is kept. A
@@ -294,6 +305,10 @@ struct MODALCAL_EXPORT DiscretizationEstimate {
   /// first_step_alternatives): it ended above the other loop's end, and the other paths only
   /// replace a path by one that ends lower; its score is that first path's.
   bool other_data_first_path_only = false;
+  /// Of that first path the data not kept walked only the forward steps (DiagnosisOptions::
+  /// other_data_margin): they ended higher than the kept data's forward steps by more than the
+  /// margin; their score is those steps' end.
+  bool other_data_forward_steps_only = false;
 };
 
 /// An accepted effect the backward pass removed: one the others make redundant, or one that

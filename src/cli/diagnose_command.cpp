@@ -14,6 +14,7 @@
 #include "cli/cli_validators.hpp"
 #include "cli/commands.hpp"
 #include "cli/work_farm.hpp"
+#include "support/text_util.hpp"
 #include "modalcal/diagnosis.hpp"
 #include "modalcal/output.hpp"
 #include "cli/plot.hpp"
@@ -42,6 +43,7 @@ struct DiagnoseArgs {
   int pair_exchanges = DiagnosisOptions().pair_exchanges;
   int calibration_starts = DiagnosisOptions().calibration_starts;
   double mesh_check = 1.5;
+  double other_data_margin = DiagnosisOptions().other_data_margin;
   bool no_backward = false;
   bool no_exchange = false;
   bool walks_in_turn = false;  // the paths one after the other even with threads
@@ -236,7 +238,8 @@ nlohmann::json discretization_json(const Diagnosis& d) {
           {"significant", est.significant},       {"corrected", est.corrected},
           {"score_corrected", json_number(est.score_corrected)},
           {"score_as_measured", json_number(est.score_as_measured)},
-          {"other_data_first_path_only", est.other_data_first_path_only}};
+          {"other_data_first_path_only", est.other_data_first_path_only},
+          {"other_data_forward_steps_only", est.other_data_forward_steps_only}};
 }
 
 /// The stepwise loop: forward steps, exchanges, what was kept and dropped, the residual at the end.
@@ -431,6 +434,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   options.max_steps = args.max_steps;
   options.first_step_alternatives = args.first_step_alternatives;
   options.alternatives_after_consistent_end = args.alternatives_after_consistent_end;
+  options.other_data_margin = args.other_data_margin;
   options.pair_exchanges = args.pair_exchanges;
   options.calibration_starts = args.calibration_starts;
   options.candidates.region_elements = args.region_size;
@@ -557,25 +561,38 @@ void add_test_flags(CLI::App* cmd, DiagnoseArgs* args) {
       ->check(FiniteRange(1e-12, 0.01));
 }
 
+/// Adds the option `flag` into `*target`, whose value now is the default, with the help
+/// `what (default VALUE; note)`.
+template <typename T>
+CLI::Option* add_with_default(CLI::App* cmd, const std::string& flag, T* target, const std::string& what,
+                              const std::string& note) {
+  return cmd->add_option(flag, *target, what + " (default " + detail::option_text(*target) + "; " + note + ")");
+}
+
 /// The flags that widen, leave out or reorder parts of the loop's walk.
 void add_walk_flags(CLI::App* cmd, DiagnoseArgs* args) {
   cmd->add_flag("--walks-in-turn", args->walks_in_turn,
                 "with --jobs above 1, walk the diagnosis's paths one after the other all the same, only the "
                 "refits in threads: slower, and less peak memory (LFU 0.7: 0.7 GB against 1.0)");
-  cmd->add_option("--first-step-alternatives", args->first_step_alternatives,
-                  "when the loop ends above the noise, walk it again from this many of "
-                  "the first step's next-best effects and keep the path that ends lowest (default " +
-                      std::to_string(DiagnosisOptions().first_step_alternatives) + "; 0: the greedy path only)")
+  add_with_default(cmd, "--first-step-alternatives", &args->first_step_alternatives,
+                   "when the loop ends above the noise, walk it again from this many of the first "
+                   "step's next-best effects and keep the path that ends lowest",
+                   "0: the greedy path only")
       ->check(non_negative_number());
   cmd->add_flag("--alternatives-after-consistent-end", args->alternatives_after_consistent_end,
                 "walk those next-best effects also when the first path took two or more steps and ends "
                 "consistent with the noise: now and then a better answer with several effects, in about twice "
                 "the time");
-  cmd->add_option("--pair-exchanges", args->pair_exchanges,
-                  "when the loop ends above the noise, try two effects for each accepted one: this many of the best "
-                  "in its place, each followed by the best step from there (default " +
-                      std::to_string(DiagnosisOptions().pair_exchanges) + "; 0: none)")
+  add_with_default(cmd, "--pair-exchanges", &args->pair_exchanges,
+                   "when the loop ends above the noise, try two effects for each accepted one: this "
+                   "many of the best in its place, each followed by the best step from there",
+                   "0: none")
       ->check(FiniteRange(0, 100));
+  add_with_default(cmd, "--other-data-margin", &args->other_data_margin,
+                   "when the mesh check is significant, the data whose forward steps end higher finish their "
+                   "first path (exchange, backward pass) only within this many critical values of the others'",
+                   "1e9: always")
+      ->check(FiniteRange(0.0, 1e9));
   cmd->add_flag("--no-exchange", args->no_exchange,
                 "keep each forward step's effect (no exchange pass re-screening it with the others in the model)");
   cmd->add_flag("--no-backward", args->no_backward,
@@ -621,11 +638,11 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
                   "estimate the discretization error on a generated mesh this many times finer (default 1.5; 0: "
                   "no estimate)")
       ->check(FiniteRange(0.0, 4.0));
-  cmd->add_option("--calibration-starts", args->calibration_starts,
-                  "when the first calibration leaves more than the noise, calibrate again from this many starts "
-                  "spread over the parameters' bounds and keep the lowest: a local minimum looks like a model-form "
-                  "error (default " +
-                      std::to_string(DiagnosisOptions().calibration_starts) + "; 0: the given start only)")
+  add_with_default(cmd, "--calibration-starts", &args->calibration_starts,
+                   "when the first calibration leaves more than the noise, calibrate again from this "
+                   "many starts spread over the parameters' bounds and keep the lowest: a local minimum "
+                   "looks like a model-form error",
+                   "0: the given start only")
       ->check(FiniteRange(0, 1000));
   add_walk_flags(cmd, args.get());
   cmd->add_option("--add", args->add,

@@ -151,6 +151,10 @@ bool DiagnosisOptions::IsValid(std::string* error) const {
     if (error) *error = "pair_exchanges = " + detail::option_text(pair_exchanges) + ": must be in [0, 100]";
     return false;
   }
+  if (!(other_data_margin >= 0)) {
+    if (error) *error = "other_data_margin = " + detail::option_text(other_data_margin) + ": must be >= 0";
+    return false;
+  }
   if (calibration_starts < 0 || calibration_starts > 1000) {
     if (error) *error = "calibration_starts = " + detail::option_text(calibration_starts) + ": must be in [0, 1000]";
     return false;
@@ -1181,28 +1185,38 @@ void end_at(const LoopState& state, Diagnosis* d) {
   d->final_fit = state.fit;
 }
 
-/// The forward steps from `state` (after the `first` already taken), then the exchange and the
-/// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
-/// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
-/// its first and fits no better than that path's first step, at no lower a score (its exchange
-/// could at best trade its effect for that one, where that path went on from). The test for the
-/// first is made after every change of the model, exchanges included.
-WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, ScreenMemo* memo,
-             Diagnosis* d, const Diagnosis* earlier = nullptr) {
-  const Joined joined = [&](const LoopState& s) {
-    return earlier && joins(s, *earlier, d->steps.size(), options.ranking.significance);
+/// walk()'s test that a walk reached the `earlier` path (joins()); never true without one.
+Joined joined_to(const Diagnosis* earlier, const Diagnosis& d, const DiagnosisOptions& options) {
+  return [earlier, &d, &options](const LoopState& s) {
+    return earlier && joins(s, *earlier, d.steps.size(), options.ranking.significance);
   };
+}
+
+/// walk()'s forward steps from `state` (after the `first` already taken); d records them and
+/// where they end. Returns how the walk ended when it ends there (WalkEnd::kJoined,
+/// WalkEnd::kNoSecondStep), else nullopt: the exchange and the backward pass follow (walk_on()).
+std::optional<WalkEnd> walk_forward(const Problem& fitted, LoopState* state, int first, const DiagnosisOptions& options,
+                                    ScreenMemo* memo, Diagnosis* d, const Diagnosis* earlier = nullptr) {
+  const Joined joined = joined_to(earlier, *d, options);
   for (int k = first; k < std::max(1, options.max_steps); ++k) {
-    if (joined(state)) return WalkEnd::kJoined;
-    if (k > 0 && options.stop_when_consistent && consistent_with_noise(state.fit)) break;
-    const bool may_accept = k < options.max_steps && !at_resolution(state.fit, options.ranking.resolution);
-    if (!forward_step(fitted, &state, options, may_accept, memo, d)) break;
+    if (joined(*state)) return WalkEnd::kJoined;
+    if (k > 0 && options.stop_when_consistent && consistent_with_noise(state->fit)) break;
+    const bool may_accept = k < options.max_steps && !at_resolution(state->fit, options.ranking.resolution);
+    if (!forward_step(fitted, state, options, may_accept, memo, d)) break;
   }
-  if (joined(state)) return WalkEnd::kJoined;
-  end_at(state, d);
-  if (earlier && d->steps.size() == 1 && state.fit.statistic >= earlier->steps.front().effect.chi2_after &&
+  if (joined(*state)) return WalkEnd::kJoined;
+  end_at(*state, d);
+  if (earlier && d->steps.size() == 1 && state->fit.statistic >= earlier->steps.front().effect.chi2_after &&
       path_score(*d) >= path_score(*earlier))
     return WalkEnd::kNoSecondStep;
+  return std::nullopt;
+}
+
+/// walk() after its forward steps (walk_forward(), which left `state`): the exchange pass, the
+/// pair exchange and the backward pass; d records them and the end.
+WalkEnd walk_on(const Problem& fitted, LoopState state, const DiagnosisOptions& options, ScreenMemo* memo, Diagnosis* d,
+                const Diagnosis* earlier = nullptr) {
+  const Joined joined = joined_to(earlier, *d, options);
   StatesWithout made = exchange_and_step_again(fitted, &state, options, memo, joined, d);
   if (joined(state)) return WalkEnd::kJoined;
   if (pair_exchange(fitted, &state, options, &made, memo, d)) {
@@ -1214,6 +1228,18 @@ WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisO
   if (options.backward) backward_pass(fitted, &state, options, std::move(made), d);
   end_at(state, d);
   return WalkEnd::kEnd;
+}
+
+/// The forward steps from `state` (after the `first` already taken), then the exchange and the
+/// backward pass; d records them and the end. Given the `earlier` path, a walk stops when nothing
+/// new lies ahead: when it reaches that path's effects (joins()), or when it took no step after
+/// its first and fits no better than that path's first step, at no lower a score (its exchange
+/// could at best trade its effect for that one, where that path went on from). The test for the
+/// first is made after every change of the model, exchanges included.
+WalkEnd walk(const Problem& fitted, LoopState state, int first, const DiagnosisOptions& options, ScreenMemo* memo,
+             Diagnosis* d, const Diagnosis* earlier = nullptr) {
+  if (const std::optional<WalkEnd> end = walk_forward(fitted, &state, first, options, memo, d, earlier)) return *end;
+  return walk_on(fitted, std::move(state), options, memo, d, earlier);
 }
 
 /// True when a and b kept the same effects: paths that end there differ only in rounding, and
@@ -1336,28 +1362,48 @@ void advise_measurements(const Problem& fitted, Diagnosis* d) {
 }
 
 /// A loop between its first path and the others: where it started and the screens it ran, which
-/// the other paths take again where they reach a model screened before.
+/// the other paths take again where they reach a model screened before; between the first path's
+/// forward steps and the rest of it, where those steps left the model.
 struct Loop {
   Problem fitted;
   LoopState start;
   Diagnosis before_the_loop;
   ScreenMemo memo;
+  LoopState at_forward_end;
 };
 
-/// The loop's first path on `fitted` from d's calibration: the forward steps, the exchange and the
-/// backward pass, with the first step's localization and map.
-Loop walk_first_path(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+/// The loop's first path on `fitted` from d's calibration up to the end of its forward steps,
+/// with the first step's localization and map; finish_first_path() walks the rest.
+Loop walk_first_path_forward(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options,
+                             Diagnosis* d) {
   localize(problem, d->calibration.final, options, d);
   d->started_with = enabled_candidates(problem, options.candidates);
   d->started_with.insert(d->started_with.end(), options.added.begin(), options.added.end());
-  Loop loop{fitted, starting_state(fitted, d->started_with, d->calibration.final, options), {}, {}};
+  Loop loop{fitted, starting_state(fitted, d->started_with, d->calibration.final, options), {}, {}, {}};
   if (!d->started_with.empty()) d->before = loop.start.fit;
   loop.before_the_loop = *d;
-  walk(loop.fitted, loop.start, 0, options, &loop.memo, d);
+  loop.at_forward_end = loop.start;
+  walk_forward(loop.fitted, &loop.at_forward_end, 0, options, &loop.memo, d);
   d->ranking = d->rankings.front();
   d->map = screen_map(problem.model, d->ranking);
   d->screens = loop.memo.screened();
   d->screens_reused = loop.memo.reused();
+  return loop;
+}
+
+/// The rest of the loop's first path after walk_first_path_forward(): the exchange and the
+/// backward pass.
+void finish_first_path(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
+  walk_on(loop->fitted, loop->at_forward_end, options, &loop->memo, d);
+  d->screens = loop->memo.screened();
+  d->screens_reused = loop->memo.reused();
+}
+
+/// The loop's first path on `fitted` from d's calibration: the forward steps, the exchange and the
+/// backward pass, with the first step's localization and map.
+Loop walk_first_path(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options, Diagnosis* d) {
+  Loop loop = walk_first_path_forward(problem, fitted, options, d);
+  finish_first_path(&loop, options, d);
   return loop;
 }
 
@@ -1390,59 +1436,101 @@ double loop_score(const Problem& data, const Diagnosis& d) {
   return score + d.ranking.critical_value * static_cast<double>(d.accepted().size());
 }
 
+/// Runs `beside` in a thread of its own (with DiagnosisOptions::walk_side_by_side) while `here`
+/// runs in this one, and waits for both; without a thread to be had, one after the other.
+template <typename Beside, typename Here>
+void side_by_side(const DiagnosisOptions& options, Beside beside, Here here) {
+  std::future<void> other;  // an exception of `here` waits for it before what it writes to goes
+  if (options.walk_side_by_side) try {
+      other = std::async(std::launch::async, beside);
+    } catch (const std::system_error&) {  // no thread to be had: walked in turn below
+    }
+  here();
+  if (other.valid())
+    other.get();
+  else
+    beside();
+}
+
+/// True when two loops' forward steps end within DiagnosisOptions::other_data_margin of each other,
+/// in critical values of `first_screen`'s step; false when a score is NaN (a loop that failed).
+bool within_margin(double score, double other_score, const EffectRanking& first_screen,
+                   const DiagnosisOptions& options) {
+  const double gap = std::abs(score - other_score);
+  return std::isfinite(gap) &&
+         (std::isinf(options.other_data_margin) || gap < options.other_data_margin * first_screen.critical_value);
+}
+
 /// The loop on the data corrected for the mesh (`corrected`, from check_the_mesh()) and on the
 /// data as measured; d becomes the one whose end scores lower, the data as measured on a tie or
-/// when the corrected data's loop cannot run (its score is then NaN). The other paths, the most
-/// of a loop's cost, are walked first for the data whose first path ends lower; for the other
-/// data only when their first path ends lower still than that loop's end. Other paths replace a
-/// path only by one that ends lower, so what this gives up is the other data's paths gaining more
-/// than the two ends differ by (measured: docs/design.md, "The mesh's share"). The two first paths
-/// run side by side with DiagnosisOptions::walk_side_by_side; when the one on the data as measured
-/// ends first, its other paths start while the other first path runs, and are let go should
-/// they not be wanted: the same diagnosis, without the cores waiting on one walk.
+/// when the corrected data's loop cannot run (its score is then NaN). Both loops take their first
+/// path's forward steps. The rest of a first path (the exchange and the backward pass) is walked
+/// for the data whose forward steps end lower, and for the other data only when theirs end within
+/// DiagnosisOptions::other_data_margin of those (measured: docs/design.md, "The mesh's share").
+/// The other paths, the most of a loop's cost, are walked first for the data whose first path
+/// ends lower; for the other data only when their first path ends lower still than that loop's
+/// end. Other paths replace a path only by one that ends lower, so what this gives up is the
+/// other data's paths gaining more than the two ends differ by. The walks that do not depend on
+/// one another run side by side with DiagnosisOptions::walk_side_by_side; when the first path on
+/// the data as measured ends first, its other paths start while the other first path runs, and
+/// are let go should they not be wanted: the same diagnosis, without the cores waiting on one walk.
 void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Problem, Vector>& corrected,
                                     const DiagnosisOptions& options, Diagnosis* d) {
   Diagnosis as_measured = *d;
   const bool noise_known = d->noise_known;
-  std::optional<Loop> corrected_loop;
-  auto first_path_corrected = [&] {
+  std::optional<Loop> corrected_loop, measured_loop;
+  auto forward_corrected = [&] {
     try {  // a loop on the corrected data that cannot run leaves the one on the data as measured
       const Problem fitted = weighted_if(noise_known, corrected.first);
       calibrate_nominal(fitted, corrected.second, options, &d->calibration, &d->before);
-      corrected_loop = walk_first_path(problem, fitted, options, d);
+      corrected_loop = walk_first_path_forward(problem, fitted, options, d);
     } catch (const std::runtime_error&) {
     }
   };
-  // Declared after all it writes to, so that an exception here waits for it before they go.
-  std::future<void> corrected_beside;
-  if (options.walk_side_by_side) try {
-      corrected_beside = std::async(std::launch::async, first_path_corrected);
-    } catch (const std::system_error&) {  // no thread to be had: walked in turn below
-    }
-  Loop measured_loop = walk_first_path(problem, weighted_if(noise_known, problem), options, &as_measured);
+  side_by_side(options, forward_corrected, [&] {
+    measured_loop = walk_first_path_forward(problem, weighted_if(noise_known, problem), options, &as_measured);
+  });
   auto score_corrected = [&] { return corrected_loop ? loop_score(corrected.first, *d) : NAN; };
   auto score_as_measured = [&] { return loop_score(problem, as_measured); };
-  const double measured_first_score = score_as_measured();
-  auto walk_corrected = [&] {  // as above: a failure leaves the data as measured
+  using Walk = void (*)(Loop*, const DiagnosisOptions&, Diagnosis*);
+  auto corrected_walks = [&](Walk walk) {  // as above: a failure leaves the data as measured
     try {
-      walk_other_paths(&*corrected_loop, options, d);
+      walk(&*corrected_loop, options, d);
     } catch (const std::runtime_error&) {
       corrected_loop.reset();
     }
   };
-  auto walk_measured = [&] { walk_other_paths(&measured_loop, options, &as_measured); };
+  auto finish_corrected = [&] { corrected_walks(finish_first_path); };
+  auto finish_measured = [&] { finish_first_path(&*measured_loop, options, &as_measured); };
+  auto walk_corrected = [&] { corrected_walks(walk_other_paths); };
+  auto walk_measured = [&] { walk_other_paths(&*measured_loop, options, &as_measured); };
+  const bool finish_both = within_margin(score_corrected(), score_as_measured(), as_measured.ranking, options);
   // While the corrected data's first path still runs, the measured data's other paths are walked
   // already (the cores would otherwise wait on that one path): they are what follows below
   // whenever the data as measured lead, or come to lead; else the first path's end is taken back.
   std::optional<Diagnosis> measured_first_path;
-  if (corrected_beside.valid() && corrected_beside.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
-    measured_first_path = as_measured;
-    walk_measured();
+  double measured_first_score = NAN;
+  if (finish_both) {
+    std::future<void> corrected_beside;  // declared after all it writes to (as side_by_side's)
+    if (options.walk_side_by_side) try {
+        corrected_beside = std::async(std::launch::async, finish_corrected);
+      } catch (const std::system_error&) {
+      }
+    finish_measured();
+    measured_first_score = score_as_measured();
+    if (corrected_beside.valid() && corrected_beside.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+      measured_first_path = as_measured;
+      walk_measured();
+    }
+    if (corrected_beside.valid())
+      corrected_beside.get();
+    else
+      finish_corrected();
+  } else {  // only the data whose forward steps end lower: the other's score stays those steps'
+    if (score_corrected() < score_as_measured()) finish_corrected();
+    if (!(score_corrected() < score_as_measured())) finish_measured();
+    measured_first_score = score_as_measured();
   }
-  if (corrected_beside.valid())
-    corrected_beside.get();
-  else
-    first_path_corrected();
   const bool corrected_first = score_corrected() < measured_first_score;
   if (corrected_first)
     walk_corrected();
@@ -1455,13 +1543,14 @@ void loop_with_and_without_the_mesh(const Problem& problem, const std::pair<Prob
   if (other_leads && corrected_first && !measured_first_path) walk_measured();
   if (!other_leads && corrected_first && measured_first_path) as_measured = std::move(*measured_first_path);
   const double corrected_score = score_corrected(), as_measured_score = score_as_measured();
-  const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop.fitted;
+  const Problem& kept_fitted = corrected_score < as_measured_score ? corrected_loop->fitted : measured_loop->fitted;
   if (!(corrected_score < as_measured_score)) *d = std::move(as_measured);
   advise_measurements(kept_fitted, d);
   d->discretization->corrected = corrected_score < as_measured_score;
   d->discretization->score_corrected = corrected_score;
   d->discretization->score_as_measured = as_measured_score;
   d->discretization->other_data_first_path_only = corrected_loop && !other_leads;
+  d->discretization->other_data_forward_steps_only = corrected_loop && !finish_both;
 }
 
 /// An effect to start from given twice is the caller's mistake: said before the first calibration,
@@ -1631,9 +1720,12 @@ std::string format_discretization(const DiscretizationEstimate& est) {
                   "measured; the diagnosis below is of the data %s\n",
                   est.score_corrected, est.score_as_measured, est.corrected ? "corrected" : "as measured");
     text += line;
-    if (est.other_data_first_path_only)
-      text += std::string("  the loop on ") + (est.corrected ? "the data as measured" : "the corrected data") +
-              " walked its first path only: that ended higher than the other loop's end\n";
+    const std::string other = est.corrected ? "the data as measured" : "the corrected data";
+    if (est.other_data_forward_steps_only)
+      text += "  the loop on " + other + " took its first path's forward steps only: they ended higher than the "
+              "other loop's by more than the margin (--other-data-margin)\n";
+    else if (est.other_data_first_path_only)
+      text += "  the loop on " + other + " walked its first path only: that ended higher than the other loop's end\n";
   }
   return text;
 }
