@@ -1617,9 +1617,9 @@ TEST(Diagnosis, APhysicalEffectTheMeshCheckWouldTakeIsFoundOnTheDataAsMeasured) 
   EXPECT_TRUE(d.discretization->significant) << report;
   EXPECT_FALSE(d.discretization->corrected) << report;
   EXPECT_LT(d.discretization->score_as_measured, d.discretization->score_corrected) << report;
-  // The corrected data's forward steps took three effects and ended more than a step's critical
-  // value above those on the data as measured: neither the rest of that first path nor its other
-  // paths were walked, and the report says so.
+  // The corrected data's forward steps ended more than a step's critical value above those on
+  // the data as measured: neither the rest of that first path nor its other paths were walked,
+  // and the report says so.
   EXPECT_TRUE(d.discretization->other_data_first_path_only) << report;
   EXPECT_TRUE(d.discretization->other_data_forward_steps_only) << report;
   EXPECT_NE(report.find("the loop on the corrected data took its first path's forward steps only"), std::string::npos)
