@@ -1035,6 +1035,9 @@ void trace_right_candidates(const ProblemContext& ctx, const Case& c, const Diag
   }
 }
 
+/// A number for the JSON, null when it is not finite (JSON has no NaN).
+json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(); }
+
 struct Outcome {
   bool ran = false;
   bool flagged = false;
@@ -1422,10 +1425,9 @@ int main(int argc, char** argv) {
           o.recommendation = d.recommendation;
           if (d.discretization) {
             const DiscretizationEstimate& e = *d.discretization;
-            auto number = [](double v) { return std::isfinite(v) ? json(v) : json(); };
             o.mesh_check = {{"significant", e.significant}, {"corrected", e.corrected},
-                            {"score_corrected", number(e.score_corrected)},
-                            {"score_as_measured", number(e.score_as_measured)},
+                            {"score_corrected", finite_or_null(e.score_corrected)},
+                            {"score_as_measured", finite_or_null(e.score_as_measured)},
                             {"other_data_first_path_only", e.other_data_first_path_only},
                             {"other_data_forward_steps_only", e.other_data_forward_steps_only}};
           }
@@ -1539,7 +1541,7 @@ int main(int argc, char** argv) {
                            {"in_candidate_list", e.in_list}, {"target_shift", e.target_shift}, {"shift", e.shift},
                            {"sizing_solves", e.sizing_solves}, {"lambda", e.lambda},
                            {"lambda_given_others", e.lambda_given_others},
-                           {"lambda_given_others_refit", std::isfinite(e.lambda_given_others_refit) ? json(e.lambda_given_others_refit) : json()},
+                           {"lambda_given_others_refit", finite_or_null(e.lambda_given_others_refit)},
                            {"location", e.location ? json{(*e.location)[0], (*e.location)[1], (*e.location)[2]} : json()},
                            {"place_tolerance", e.location ? 2 * element_size_at(ctx, *e.location) + e.region_radius : NAN}});
       cj["truth"] = effects;
@@ -1563,7 +1565,7 @@ int main(int argc, char** argv) {
         cj["p_final"] = o.p_final;
         cj["chi2_before"] = o.chi2_before;
         cj["chi2_final"] = o.chi2_final;
-        cj["chi2_truth_model"] = std::isfinite(o.chi2_truth) ? json(o.chi2_truth) : json();
+        cj["chi2_truth_model"] = finite_or_null(o.chi2_truth);
         cj["value_error"] = o.value_error;
         cj["recommendation"] = o.recommendation;
         cj["mesh_check"] = o.mesh_check;

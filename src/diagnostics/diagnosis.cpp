@@ -1372,6 +1372,12 @@ struct Loop {
   LoopState at_forward_end;
 };
 
+/// d's count of the screens its loop ran so far (Diagnosis::screens, screens_reused).
+void count_screens(const Loop& loop, Diagnosis* d) {
+  d->screens = loop.memo.screened();
+  d->screens_reused = loop.memo.reused();
+}
+
 /// The loop's first path on `fitted` from d's calibration up to the end of its forward steps,
 /// with the first step's localization and map; finish_first_path() walks the rest.
 Loop walk_first_path_forward(const Problem& problem, const Problem& fitted, const DiagnosisOptions& options,
@@ -1386,8 +1392,7 @@ Loop walk_first_path_forward(const Problem& problem, const Problem& fitted, cons
   walk_forward(loop.fitted, &loop.at_forward_end, 0, options, &loop.memo, d);
   d->ranking = d->rankings.front();
   d->map = screen_map(problem.model, d->ranking);
-  d->screens = loop.memo.screened();
-  d->screens_reused = loop.memo.reused();
+  count_screens(loop, d);
   return loop;
 }
 
@@ -1395,8 +1400,7 @@ Loop walk_first_path_forward(const Problem& problem, const Problem& fitted, cons
 /// backward pass.
 void finish_first_path(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
   walk_on(loop->fitted, loop->at_forward_end, options, &loop->memo, d);
-  d->screens = loop->memo.screened();
-  d->screens_reused = loop->memo.reused();
+  count_screens(*loop, d);
 }
 
 /// The loop's first path on `fitted` from d's calibration: the forward steps, the exchange and the
@@ -1414,8 +1418,7 @@ Loop walk_first_path(const Problem& problem, const Problem& fitted, const Diagno
 /// for them together, and no later step or exchange then leaves it.
 void walk_other_paths(Loop* loop, const DiagnosisOptions& options, Diagnosis* d) {
   walk_other_paths(loop->fitted, loop->start, loop->before_the_loop, options, &loop->memo, d);
-  d->screens = loop->memo.screened();
-  d->screens_reused = loop->memo.reused();
+  count_screens(*loop, d);
 }
 
 /// The whole loop on `fitted` from d's calibration: its first path, then the others.
