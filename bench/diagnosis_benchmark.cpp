@@ -1075,6 +1075,7 @@ struct Args {
   std::vector<int> only_cases;  // --case-list: run only these case numbers
   std::vector<double> fine_ratios = {1.5, 2.0};
   int refits = RankingOptions().refits;
+  int weak_refits = RankingOptions().weak_refits;
   int place_refits = RankingOptions().place_refits;
   int kind_refits = RankingOptions().kind_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
@@ -1104,15 +1105,16 @@ void usage() {
       "                    [--json FILE] [--significance A] [--noise-freq F] [--noise-shape S]\n"
       "                    [--min-shift X] [--max-shift X] [--only CATEGORY] [--case-list K,..] [--dry-run]\n"
       "                    [--write-data DIR]\n"
-      "                    [--mesh-check R] [--refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
+      "                    [--mesh-check R] [--refits N] [--weak-refits N] [--place-refits N] [--kind-refits N] [--neighbour-refits N]\n"
       "                    [--neighbour-rounds N] [--no-kind-prior] [--first-step-alternatives N] [--pair-exchanges N]\n"
       "                    [--calibration-starts N] [--alternatives-after-consistent-end 0|1] [--other-data-margin X]\n"
       "                    [--print-diagnosis] [--stop-when-consistent] [--jobs N] [--walks-in-turn] [--region-levels N]\n"
       "                    [--no-region-stagger]\n"
       "                    [--region-size X] [--refit-function-tolerance X]\n"
       "                    [--refit-span-share X]\n"
-      "  --refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds, --no-kind-prior:\n"
-      "  RankingOptions::refits, place_refits, kind_refits, neighbour_refits, neighbour_rounds and\n"
+      "  --refits, --weak-refits, --place-refits, --kind-refits, --neighbour-refits, --neighbour-rounds,\n"
+      "  --no-kind-prior: RankingOptions::refits, weak_refits, place_refits, kind_refits, neighbour_refits,\n"
+      "  neighbour_rounds and\n"
       "  equal_kind_prior; --first-step-alternatives, --pair-exchanges, --calibration-starts:\n"
       "  DiagnosisOptions::first_step_alternatives, pair_exchanges and calibration_starts (defaults:\n"
       "  diagnose's); --alternatives-after-consistent-end: DiagnosisOptions::\n"
@@ -1205,6 +1207,7 @@ int main(int argc, char** argv) {
       else if (a == "--significance") args.significance = std::stod(next());
       else if (a == "--mesh-check") args.mesh_check = std::stod(next());
       else if (a == "--refits") args.refits = std::stoi(next());
+      else if (a == "--weak-refits") args.weak_refits = std::stoi(next());
       else if (a == "--place-refits") args.place_refits = std::stoi(next());
       else if (a == "--kind-refits") args.kind_refits = std::stoi(next());
       else if (a == "--neighbour-refits") args.neighbour_refits = std::stoi(next());
@@ -1274,9 +1277,9 @@ int main(int argc, char** argv) {
   std::printf("# model-form diagnosis on generated cases\n# commit %s%s, %s, load average %s\n# %s\n",
               commit.c_str(), dirty.empty() ? "" : " (library sources modified)", date, bench::load_average().c_str(),
               args.command.c_str());
-  std::printf("# DiagnosisOptions (refits %d + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps%s, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, other data's margin %g, significance %g, max_steps %d, backward pass); noise %g "
+  std::printf("# DiagnosisOptions (refits %d, %d when weak, + %d at places apart + %d of other kinds + %d neighbours in up to %d rounds, %d other first steps%s, %d pair exchanges, %d grids of regions%s, %d further calibration starts%s%s, other data's margin %g, significance %g, max_steps %d, backward pass); noise %g "
               "(frequency), %g (shape); start: the problem file's initial values\n",
-              args.refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.alternatives_after_consistent_end ? "" : " (only after an end above the noise)", args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
+              args.refits, args.weak_refits, args.place_refits, args.kind_refits, args.neighbour_refits, args.neighbour_rounds, args.first_step_alternatives, args.alternatives_after_consistent_end ? "" : " (only after an end above the noise)", args.pair_exchanges, args.region_levels, args.region_stagger ? " and each shifted" : "", args.calibration_starts, args.equal_kind_prior ? "" : ", no kind prior",
               args.stop_when_consistent ? ", stop when consistent" : "", args.other_data_margin, args.significance, DiagnosisOptions().max_steps, args.noise.frequency,
               args.noise.shape);
   std::printf("# detectable: lambda = |(I - J J^+) r|^2 >= lambda*, r the noise-weighted residual of the nominal model at the "
@@ -1389,6 +1392,7 @@ int main(int argc, char** argv) {
           DiagnosisOptions options;
           options.ranking.significance = args.significance;
           options.ranking.refits = args.refits;
+          options.ranking.weak_refits = args.weak_refits;
           options.ranking.place_refits = args.place_refits;
           options.ranking.kind_refits = args.kind_refits;
           options.ranking.neighbour_refits = args.neighbour_refits;

@@ -487,6 +487,35 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
   EXPECT_NE(why.find("place_refit_share"), std::string::npos);
 }
 
+// A weak step refits more of the best predictions (RankingOptions::weak_refits): near the critical
+// value many places predict alike. `weak_prediction` says which steps are weak; here 0 makes none
+// weak and a huge one makes this strong effect's step weak too.
+TEST(EffectRanking, AWeakStepRefitsMoreOfTheBestPredictions) {
+  const CalibratedKrx krx = CalibrateHiddenKrx();
+  RankingOptions options;
+  options.refits = 1;
+  options.weak_refits = 3;
+  options.place_refits = options.kind_refits = options.neighbour_refits = 0;
+  const auto refitted = [&](double weak_prediction) {
+    options.weak_prediction = weak_prediction;
+    const EffectRanking r = rank_effects(krx.problem, krx.calibrated, krx.candidates, options);
+    return std::count_if(r.effects.begin(), r.effects.end(), [](const RankedEffect& e) { return e.refitted; });
+  };
+  EXPECT_EQ(refitted(0), 1);
+  EXPECT_EQ(refitted(1e12), 3);
+  options.weak_refits = 0;  // never fewer than `refits`
+  EXPECT_EQ(refitted(1e12), 1);
+  RankingOptions bad;
+  bad.weak_refits = -1;
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("weak_refits"), std::string::npos) << why;
+  bad = RankingOptions();
+  bad.weak_prediction = NAN;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("weak_prediction"), std::string::npos) << why;
+}
+
 // The refits beyond the best predictions go to other kinds of effect too, each kind's best, so
 // that other physics at one place (a support, the stiffness of the part it holds) is refitted
 // even when the best predictions are all one kind's variants.

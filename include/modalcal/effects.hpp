@@ -210,6 +210,17 @@ MODALCAL_EXPORT std::optional<Vec3> effect_place(const Model& model, const Effec
 struct MODALCAL_EXPORT RankingOptions {
   /// How many of the best-predicted candidates are refitted. Range: >= 0.
   int refits = 3;
+  /// Refits for a weak effect: while the best prediction is below `weak_prediction` critical
+  /// values, max(refits, weak_refits) of the best-predicted candidates (one per group of
+  /// neighbours) are refitted. Near the critical value many places predict alike, and a refit's
+  /// gain over its first-order prediction differs between them by more than the predictions do:
+  /// a point mass at a sensor's node gains about twice its prediction, one a few nodes away a
+  /// quarter more (docs/design.md, "Refits of a weak effect"). A weak effect's refits are short,
+  /// and a strong one's ranking is not flat, so only weak steps refit more. 0: `refits` always.
+  /// Range: >= 0.
+  int weak_refits = 6;
+  /// Range: >= 0 (0: no step counts as weak).
+  double weak_prediction = 2;
   /// Further refits for hypotheses elsewhere: the best-predicted candidates whose place lies
   /// farther than a quarter of the model's size from every candidate chosen before, while their
   /// prediction is at least `place_refit_share` of the best one's. Mirror-image parts of a

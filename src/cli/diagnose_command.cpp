@@ -30,6 +30,7 @@ struct DiagnoseArgs {
   double start_factor = 1;
   double refine = 0;
   int refits = RankingOptions().refits;
+  int weak_refits = RankingOptions().weak_refits;
   int place_refits = RankingOptions().place_refits;
   int kind_refits = RankingOptions().kind_refits;
   int neighbour_refits = RankingOptions().neighbour_refits;
@@ -424,6 +425,7 @@ DiagnosisOptions diagnosis_options(const DiagnoseArgs& args, WorkFarm& farm) {
   DiagnosisOptions options;
   options.calibration.max_iterations = args.max_iterations;
   options.ranking.refits = args.refits;
+  options.ranking.weak_refits = args.weak_refits;
   options.ranking.place_refits = args.place_refits;
   options.ranking.kind_refits = args.kind_refits;
   options.ranking.neighbour_refits = args.neighbour_refits;
@@ -614,6 +616,11 @@ void register_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--refine", args->refine, "mesh refinement factor (overrides the problem file)")
       ->check(positive_number());
   cmd->add_option("--refits", args->refits, "refit this many of the best-predicted effects (default 3)")
+      ->check(non_negative_number());
+  add_with_default(cmd, "--weak-refits", &args->weak_refits,
+                   "refit this many instead when the best prediction is under two critical values, where many "
+                   "places predict alike",
+                   "0: --refits always")
       ->check(non_negative_number());
   cmd->add_option("--place-refits", args->place_refits,
                   "then refit this many more, each the best-predicted effect apart from those chosen (default 2)")

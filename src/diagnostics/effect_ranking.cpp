@@ -128,6 +128,18 @@ void set_kind_penalties(std::vector<RankedEffect>* screened, bool equal_kind_pri
   }
 }
 
+/// How many of the best predictions to refit (RankingOptions::refits, weak_refits): more when
+/// the best prediction, as the test's statistic, lies within `weak_prediction` critical values,
+/// where the first-order ranking of places is flat. Without a stated noise the statistic divides
+/// by the calibrated point's residual per degree of freedom, as a refit's does by its own.
+int refit_count(const std::vector<RankedEffect>& screened, const RankingOptions& options, const EffectRanking& ranking) {
+  if (screened.empty()) return options.refits;
+  const double noise_variance =
+      ranking.noise_known ? 1.0 : std::max(ranking.chi2_before / std::max(1, ranking.dof_before), ranking.resolution_variance);
+  const bool weak = screened.front().predicted_reduction / noise_variance < options.weak_prediction * ranking.critical_value;
+  return weak ? std::max(options.refits, options.weak_refits) : options.refits;
+}
+
 /// The `refits` candidates to refit from `screened` (in order of prediction): the best
 /// prediction, then by predicted score (prediction less the kind's penalty), at most one of each
 /// group of neighbours (the best of it).
@@ -685,7 +697,7 @@ void climb_neighbours(const Problem& problem, const RankingOptions& options, con
 /// the best refits' neighbours (climb_neighbours), each judged by its likelihood-ratio test.
 void refit_best(const Problem& problem, const RankingOptions& options, const EffectRanking& ranking,
                 detail::StepSpan* step, std::vector<RankedEffect>* screened) {
-  std::vector<size_t> choices = refit_choices(*screened, options.refits);
+  std::vector<size_t> choices = refit_choices(*screened, refit_count(*screened, options, ranking));
   add_place_refits(problem.model, *screened, options, &choices);
   add_kind_refits(*screened, options, &choices);
   refit_chosen(problem, options, ranking, choices, step, screened);
@@ -755,6 +767,9 @@ bool RankingOptions::IsValid(std::string* error) const {
     return false;
   };
   if (refits < 0) return bad("refits = " + detail::option_text(refits) + ": must be >= 0");
+  if (weak_refits < 0) return bad("weak_refits = " + detail::option_text(weak_refits) + ": must be >= 0");
+  if (!(weak_prediction >= 0) || !std::isfinite(weak_prediction))
+    return bad("weak_prediction = " + detail::option_text(weak_prediction) + ": must be finite and >= 0");
   if (place_refits < 0) return bad("place_refits = " + detail::option_text(place_refits) + ": must be >= 0");
   if (neighbour_refits < 0) return bad("neighbour_refits = " + detail::option_text(neighbour_refits) + ": must be >= 0");
   if (neighbour_rounds < 0) return bad("neighbour_rounds = " + detail::option_text(neighbour_rounds) + ": must be >= 0");
