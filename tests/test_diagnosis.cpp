@@ -487,6 +487,15 @@ TEST(EffectRanking, FurtherRefitsGoToHypothesesElsewhere) {
   EXPECT_NE(why.find("place_refit_share"), std::string::npos);
 }
 
+/// Expects RankingOptions with `spoil` applied to be invalid, the reason naming `field`.
+void ExpectInvalidNaming(const std::function<void(RankingOptions*)>& spoil, const std::string& field) {
+  RankingOptions bad;
+  spoil(&bad);
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why)) << field;
+  EXPECT_NE(why.find(field), std::string::npos) << why;
+}
+
 // A weak step refits more of the best predictions (RankingOptions::weak_refits): near the critical
 // value many places predict alike. `weak_prediction` says which steps are weak; here 0 makes none
 // weak and a huge one makes this strong effect's step weak too.
@@ -505,15 +514,8 @@ TEST(EffectRanking, AWeakStepRefitsMoreOfTheBestPredictions) {
   EXPECT_EQ(refitted(1e12), 3);
   options.weak_refits = 0;  // never fewer than `refits`
   EXPECT_EQ(refitted(1e12), 1);
-  RankingOptions bad;
-  bad.weak_refits = -1;
-  std::string why;
-  EXPECT_FALSE(bad.IsValid(&why));
-  EXPECT_NE(why.find("weak_refits"), std::string::npos) << why;
-  bad = RankingOptions();
-  bad.weak_prediction = NAN;
-  EXPECT_FALSE(bad.IsValid(&why));
-  EXPECT_NE(why.find("weak_prediction"), std::string::npos) << why;
+  ExpectInvalidNaming([](RankingOptions* o) { o->weak_refits = -1; }, "weak_refits");
+  ExpectInvalidNaming([](RankingOptions* o) { o->weak_prediction = NAN; }, "weak_prediction");
 }
 
 // The refits beyond the best predictions go to other kinds of effect too, each kind's best, so
@@ -671,15 +673,8 @@ TEST(EffectRanking, TheNeighbourRefitsWalkOnToWhereTheDataFitBest) {
   EXPECT_LT((*three_rounds.candidate.location - Vec3(1.5, 0, 0)).norm(), 1e-9) << three_rounds.summary();
   EXPECT_FALSE(three_rounds.model_form_error_after) << three_rounds.summary();
   EXPECT_GT(one_round.chi2_after, three_rounds.chi2_after + 100) << one_round.summary();
-  RankingOptions bad;
-  bad.neighbour_rounds = -1;
-  std::string error;
-  EXPECT_FALSE(bad.IsValid(&error));
-  EXPECT_NE(error.find("neighbour_rounds"), std::string::npos) << error;
-  bad = RankingOptions();
-  bad.neighbour_window_share = 1;
-  EXPECT_FALSE(bad.IsValid(&error));
-  EXPECT_NE(error.find("neighbour_window_share"), std::string::npos) << error;
+  ExpectInvalidNaming([](RankingOptions* o) { o->neighbour_rounds = -1; }, "neighbour_rounds");
+  ExpectInvalidNaming([](RankingOptions* o) { o->neighbour_window_share = 1; }, "neighbour_window_share");
 }
 
 /// The solves two rankings' refits spent, `tight`'s and `loose`'s, and how many refits compared.
