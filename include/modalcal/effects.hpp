@@ -215,7 +215,7 @@ struct MODALCAL_EXPORT RankingOptions {
   /// neighbours) are refitted. Near the critical value many places predict alike, and a refit's
   /// gain over its first-order prediction differs between them by more than the predictions do:
   /// a point mass at a sensor's node gains about twice its prediction, one a few nodes away a
-  /// quarter more (docs/design.md, "Refits of a weak effect"). A weak effect's refits are short,
+  /// quarter more (docs/design.md, "Refits and significance"). A weak effect's refits are short,
   /// and a strong one's ranking is not flat, so only weak steps refit more. 0: `refits` always.
   /// Range: >= 0.
   int weak_refits = 6;
